@@ -1,0 +1,1 @@
+//! Direct photometric alignment (in progress).

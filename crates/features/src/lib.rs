@@ -1,0 +1,1 @@
+//! ORB features and Hamming matching (in progress).

@@ -1,0 +1,333 @@
+//! Pinhole camera with radial-tangential (Brown-Conrady, OpenCV `k1 k2 p1 p2 k3`) distortion.
+//!
+//! Frames and units: a point `P = (X, Y, Z)` in the camera frame (metres, `Z` forward, `X`
+//! right, `Y` down) projects to normalized coordinates `x_n = (X/Z, Y/Z)`, which the lens
+//! distorts to `x_d = D(x_n)`, and the intrinsics map to pixels `u = fx x_d + cx`,
+//! `v = fy y_d + cy` (pixel centers at integer coordinates, `(0, 0)` the top-left pixel).
+//!
+//! The distortion, with `r^2 = x^2 + y^2`:
+//! `x_d = x (1 + k1 r^2 + k2 r^4 + k3 r^6) + 2 p1 x y + p2 (r^2 + 2 x^2)`,
+//! `y_d = y (1 + k1 r^2 + k2 r^4 + k3 r^6) + p1 (r^2 + 2 y^2) + 2 p2 x y`.
+
+use nalgebra::{Matrix2, Matrix2x3, Matrix3, Unit, Vector2, Vector3};
+use thiserror::Error;
+
+/// Invalid camera parameters.
+#[derive(Debug, Clone, Copy, PartialEq, Error)]
+pub enum CameraError {
+    /// A focal length is zero, negative or not finite.
+    #[error("focal lengths must be positive and finite, got fx = {fx}, fy = {fy}")]
+    BadFocalLength {
+        /// Horizontal focal length in pixels.
+        fx: f64,
+        /// Vertical focal length in pixels.
+        fy: f64,
+    },
+    /// The principal point or a distortion coefficient is not finite.
+    #[error("camera parameters must be finite")]
+    NotFinite,
+}
+
+/// Pinhole intrinsics in pixels.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Pinhole {
+    /// Focal length along `u`, pixels.
+    pub fx: f64,
+    /// Focal length along `v`, pixels.
+    pub fy: f64,
+    /// Principal point `u`, pixels.
+    pub cx: f64,
+    /// Principal point `v`, pixels.
+    pub cy: f64,
+}
+
+impl Pinhole {
+    /// Checked constructor: focal lengths must be positive, everything finite.
+    pub fn new(fx: f64, fy: f64, cx: f64, cy: f64) -> Result<Self, CameraError> {
+        let p = Self { fx, fy, cx, cy };
+        p.validate()?;
+        Ok(p)
+    }
+
+    /// Checks the invariants of [`Pinhole::new`] for a value built from public fields.
+    pub fn validate(&self) -> Result<(), CameraError> {
+        if !(self.fx > 0.0 && self.fy > 0.0 && self.fx.is_finite() && self.fy.is_finite()) {
+            return Err(CameraError::BadFocalLength {
+                fx: self.fx,
+                fy: self.fy,
+            });
+        }
+        if !(self.cx.is_finite() && self.cy.is_finite()) {
+            return Err(CameraError::NotFinite);
+        }
+        Ok(())
+    }
+
+    /// The matrix `K = [[fx, 0, cx], [0, fy, cy], [0, 0, 1]]`.
+    pub fn matrix(&self) -> Matrix3<f64> {
+        Matrix3::new(self.fx, 0.0, self.cx, 0.0, self.fy, self.cy, 0.0, 0.0, 1.0)
+    }
+
+    /// Pixel of the (already distorted, or distortion-free) normalized point `x`.
+    #[inline]
+    pub fn to_pixel(&self, x: &Vector2<f64>) -> Vector2<f64> {
+        Vector2::new(self.fx * x.x + self.cx, self.fy * x.y + self.cy)
+    }
+
+    /// Normalized coordinates of pixel `u` (inverse of [`Pinhole::to_pixel`]).
+    #[inline]
+    pub fn to_normalized(&self, u: &Vector2<f64>) -> Vector2<f64> {
+        Vector2::new((u.x - self.cx) / self.fx, (u.y - self.cy) / self.fy)
+    }
+
+    /// Pixel of a camera-frame point, `None` when it is not in front (`Z <= 0`).
+    #[inline]
+    pub fn project(&self, p: &Vector3<f64>) -> Option<Vector2<f64>> {
+        (p.z > 0.0).then(|| self.to_pixel(&Vector2::new(p.x / p.z, p.y / p.z)))
+    }
+
+    /// `d pixel / d P` of [`Pinhole::project`]:
+    /// `[[fx/Z, 0, -fx X/Z^2], [0, fy/Z, -fy Y/Z^2]]`.
+    #[inline]
+    pub fn project_jacobian(&self, p: &Vector3<f64>) -> Matrix2x3<f64> {
+        let iz = 1.0 / p.z;
+        let iz2 = iz * iz;
+        Matrix2x3::new(
+            self.fx * iz,
+            0.0,
+            -self.fx * p.x * iz2,
+            0.0,
+            self.fy * iz,
+            -self.fy * p.y * iz2,
+        )
+    }
+
+    /// The camera-frame point at depth `z` (metres along the optical axis) seen at pixel `u`.
+    #[inline]
+    pub fn back_project(&self, u: &Vector2<f64>, z: f64) -> Vector3<f64> {
+        let x = self.to_normalized(u);
+        Vector3::new(x.x * z, x.y * z, z)
+    }
+}
+
+/// Radial-tangential distortion coefficients (OpenCV order `k1, k2, p1, p2, k3`).
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct Distortion {
+    /// Radial `r^2` coefficient.
+    pub k1: f64,
+    /// Radial `r^4` coefficient.
+    pub k2: f64,
+    /// First tangential coefficient.
+    pub p1: f64,
+    /// Second tangential coefficient.
+    pub p2: f64,
+    /// Radial `r^6` coefficient.
+    pub k3: f64,
+}
+
+impl Distortion {
+    /// From the OpenCV order `[k1, k2, p1, p2, k3]`.
+    pub fn from_array(d: [f64; 5]) -> Self {
+        Self {
+            k1: d[0],
+            k2: d[1],
+            p1: d[2],
+            p2: d[3],
+            k3: d[4],
+        }
+    }
+
+    /// True when every coefficient is zero (distortion is the identity).
+    pub fn is_identity(&self) -> bool {
+        *self == Self::default()
+    }
+
+    /// Distorts normalized coordinates, `x_d = D(x_n)` (see the module documentation).
+    #[inline]
+    pub fn distort(&self, x: &Vector2<f64>) -> Vector2<f64> {
+        let (a, b) = (x.x, x.y);
+        let r2 = a * a + b * b;
+        let radial = 1.0 + r2 * (self.k1 + r2 * (self.k2 + r2 * self.k3));
+        Vector2::new(
+            a * radial + 2.0 * self.p1 * a * b + self.p2 * (r2 + 2.0 * a * a),
+            b * radial + self.p1 * (r2 + 2.0 * b * b) + 2.0 * self.p2 * a * b,
+        )
+    }
+
+    /// Jacobian `d x_d / d x_n` of [`Distortion::distort`].
+    pub fn distort_jacobian(&self, x: &Vector2<f64>) -> Matrix2<f64> {
+        let (a, b) = (x.x, x.y);
+        let r2 = a * a + b * b;
+        let radial = 1.0 + r2 * (self.k1 + r2 * (self.k2 + r2 * self.k3));
+        // d radial / d r2
+        let dradial = self.k1 + r2 * (2.0 * self.k2 + 3.0 * self.k3 * r2);
+        Matrix2::new(
+            radial + 2.0 * a * a * dradial + 2.0 * self.p1 * b + 6.0 * self.p2 * a,
+            2.0 * a * b * dradial + 2.0 * self.p1 * a + 2.0 * self.p2 * b,
+            2.0 * a * b * dradial + 2.0 * self.p1 * a + 2.0 * self.p2 * b,
+            radial + 2.0 * b * b * dradial + 6.0 * self.p1 * b + 2.0 * self.p2 * a,
+        )
+    }
+
+    /// Inverts [`Distortion::distort`] by Newton iterations from `x_n = x_d`.
+    ///
+    /// Returns `None` when the iteration does not reach `1e-12` (a point outside the region
+    /// where the distortion polynomial is invertible).
+    pub fn undistort(&self, xd: &Vector2<f64>) -> Option<Vector2<f64>> {
+        if self.is_identity() {
+            return Some(*xd);
+        }
+        let mut x = *xd;
+        for _ in 0..30 {
+            let err = self.distort(&x) - xd;
+            if err.norm_squared() < 1e-24 {
+                return Some(x);
+            }
+            let step = self.distort_jacobian(&x).try_inverse()? * err;
+            x -= step;
+            if !x.iter().all(|v| v.is_finite()) {
+                return None;
+            }
+        }
+        ((self.distort(&x) - xd).norm() < 1e-9).then_some(x)
+    }
+}
+
+/// A calibrated camera: pinhole intrinsics plus lens distortion.
+///
+/// ```
+/// use nalgebra::{Vector2, Vector3};
+/// use vofront_geometry::camera::{Camera, Distortion, Pinhole};
+/// let cam = Camera::new(
+///     Pinhole::new(517.3, 516.5, 318.6, 255.3).unwrap(),
+///     Distortion::from_array([0.2624, -0.9531, -0.0054, 0.0026, 1.1633]),
+/// );
+/// let p = Vector3::new(0.3, -0.2, 2.0);
+/// let px = cam.project(&p).unwrap();
+/// let ray = cam.bearing(&px).unwrap();
+/// assert!((ray.into_inner() - p.normalize()).norm() < 1e-9);
+/// ```
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Camera {
+    /// Intrinsics.
+    pub pinhole: Pinhole,
+    /// Lens distortion (identity by default).
+    pub distortion: Distortion,
+}
+
+impl Camera {
+    /// A camera from intrinsics and distortion.
+    pub fn new(pinhole: Pinhole, distortion: Distortion) -> Self {
+        Self {
+            pinhole,
+            distortion,
+        }
+    }
+
+    /// A distortion-free camera.
+    pub fn pinhole(pinhole: Pinhole) -> Self {
+        Self {
+            pinhole,
+            distortion: Distortion::default(),
+        }
+    }
+
+    /// Checks intrinsics and distortion for the invariants of [`Pinhole::new`].
+    pub fn validate(&self) -> Result<(), CameraError> {
+        self.pinhole.validate()?;
+        let d = &self.distortion;
+        if [d.k1, d.k2, d.p1, d.p2, d.k3].iter().all(|v| v.is_finite()) {
+            Ok(())
+        } else {
+            Err(CameraError::NotFinite)
+        }
+    }
+
+    /// Pixel of a camera-frame point through the lens, `None` behind the camera.
+    pub fn project(&self, p: &Vector3<f64>) -> Option<Vector2<f64>> {
+        (p.z > 0.0).then(|| {
+            let xn = Vector2::new(p.x / p.z, p.y / p.z);
+            self.pinhole.to_pixel(&self.distortion.distort(&xn))
+        })
+    }
+
+    /// Undistorted normalized coordinates `x_n` of an observed pixel.
+    pub fn pixel_to_normalized(&self, u: &Vector2<f64>) -> Option<Vector2<f64>> {
+        self.distortion.undistort(&self.pinhole.to_normalized(u))
+    }
+
+    /// Observed pixel of undistorted normalized coordinates `x_n`.
+    pub fn normalized_to_pixel(&self, x: &Vector2<f64>) -> Vector2<f64> {
+        self.pinhole.to_pixel(&self.distortion.distort(x))
+    }
+
+    /// Unit ray `(x_n, 1) / |(x_n, 1)|` in the camera frame through an observed pixel.
+    pub fn bearing(&self, u: &Vector2<f64>) -> Option<Unit<Vector3<f64>>> {
+        self.pixel_to_normalized(u)
+            .map(|x| Unit::new_normalize(Vector3::new(x.x, x.y, 1.0)))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use proptest::prelude::*;
+
+    const TUM_FR1: [f64; 5] = [0.2624, -0.9531, -0.0054, 0.0026, 1.1633];
+
+    #[test]
+    fn zero_or_nan_focal_length_is_rejected() {
+        assert!(matches!(
+            Pinhole::new(0.0, 500.0, 320.0, 240.0),
+            Err(CameraError::BadFocalLength { .. })
+        ));
+        assert!(matches!(
+            Pinhole::new(f64::NAN, 500.0, 320.0, 240.0),
+            Err(CameraError::BadFocalLength { .. })
+        ));
+        assert_eq!(
+            Pinhole::new(500.0, 500.0, f64::INFINITY, 240.0),
+            Err(CameraError::NotFinite)
+        );
+    }
+
+    proptest! {
+        #[test]
+        fn undistort_inverts_distort(x in -0.6f64..0.6, y in -0.45f64..0.45) {
+            let d = Distortion::from_array(TUM_FR1);
+            let xn = Vector2::new(x, y);
+            let back = d.undistort(&d.distort(&xn)).unwrap();
+            prop_assert!((back - xn).norm() < 1e-9);
+        }
+
+        #[test]
+        fn distort_jacobian_matches_finite_differences(x in -0.6f64..0.6, y in -0.45f64..0.45) {
+            let d = Distortion::from_array(TUM_FR1);
+            let xn = Vector2::new(x, y);
+            let j = d.distort_jacobian(&xn);
+            let h = 1e-7;
+            for k in 0..2 {
+                let mut e = Vector2::zeros();
+                e[k] = h;
+                let numeric = (d.distort(&(xn + e)) - d.distort(&(xn - e))) / (2.0 * h);
+                prop_assert!((numeric - j.column(k)).norm() < 1e-6);
+            }
+        }
+
+        #[test]
+        fn pixel_and_point_round_trip(u in 0.0f64..640.0, v in 0.0f64..480.0, z in 0.2f64..20.0) {
+            let k = Pinhole::new(520.0, 515.0, 320.0, 240.0).unwrap();
+            let px = Vector2::new(u, v);
+            let p = k.back_project(&px, z);
+            prop_assert!((k.project(&p).unwrap() - px).norm() < 1e-9);
+            let j = k.project_jacobian(&p);
+            let h = 1e-6;
+            for c in 0..3 {
+                let mut e = Vector3::zeros();
+                e[c] = h;
+                let numeric = (k.project(&(p + e)).unwrap() - k.project(&(p - e)).unwrap()) / (2.0 * h);
+                prop_assert!((numeric - j.column(c)).norm() < 1e-5);
+            }
+        }
+    }
+}

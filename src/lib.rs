@@ -1,0 +1,15 @@
+//! vofront: a pure-Rust visual-odometry front-end.
+//!
+//! Two camera frames in, a relative pose `T_21` (points of frame 1 into frame 2,
+//! `x2 = R x1 + t`) and quality scores out. The workspace crates are re-exported here:
+//!
+//! - [`robust`]: losses, IRLS, damped normal equations shared by every estimator;
+//! - [`geometry`]: camera models, SO(3)/SE(3), two-view and PnP geometry;
+//! - [`features`]: ORB detection, description and Hamming matching;
+//! - [`direct`]: photometric alignment and KLT;
+//! - [`fixtures`]: synthetic scenes with exact ground truth.
+pub use vofront_direct as direct;
+pub use vofront_features as features;
+pub use vofront_fixtures as fixtures;
+pub use vofront_geometry as geometry;
+pub use vofront_robust as robust;
