@@ -415,6 +415,15 @@ fn euroc_reads_camera_nanosecond_stamps_and_body_ground_truth() {
     ));
     assert!(body.rotation.angle_to(&q) < 1e-12);
     assert!(data.ground_truth_at(1).is_none(), "55 ms away");
+    // T_BS: row-major 4x4 over several lines; its first column is the camera x axis in the body.
+    let t_bc = data.camera_in_body.expect("T_BS");
+    assert_eq!(
+        t_bc.translation.vector,
+        Vector3::new(-0.0216401454975, -0.064676986768, 0.00981073058949)
+    );
+    let x_axis = t_bc.rotation * Vector3::x();
+    let want = Vector3::new(0.0148655429818, 0.999557249008, -0.0257744366974);
+    assert!((x_axis - want).norm() < 1e-5, "{x_axis:?}");
 }
 
 #[test]

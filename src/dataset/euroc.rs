@@ -9,15 +9,19 @@
 //! Ground truth, optional: `mav0/state_groundtruth_estimate0/data.csv`, lines
 //! `t [ns], px, py, pz, qw, qx, qy, qz, ...` (further columns ignored). It is the pose of the
 //! **body (IMU) frame**, `T_wb`, exposed as published; the camera pose is `T_wb * T_bs`
-//! with `T_BS` of `cam0/sensor.yaml`, which this reader does not apply.
+//! with `T_BS` of `cam0/sensor.yaml` (exposed as [`Dataset::camera_in_body`]), which this
+//! reader does not apply.
 
 use std::path::Path;
 
-use nalgebra::{Isometry3, Quaternion, Translation3, UnitQuaternion};
+use nalgebra::{Isometry3, Matrix3, Quaternion, Rotation3, Translation3, UnitQuaternion};
 use vofront_geometry::camera::{Camera, Distortion, Pinhole};
 
 use super::{parse_error, read_text, Dataset, DatasetConfig, DatasetError, DatasetKind, FrameInfo};
 use crate::trajectory::{data_lines, parse_numbers, Trajectory};
+
+/// Tolerance on `|R^T R - I|` for the rotation block of `T_BS` (published to ~1e-6).
+const ROTATION_TOLERANCE: f64 = 1e-3;
 
 /// Opens a EuRoC MAV folder (the one holding `mav0/`; see the module documentation).
 pub fn open(root: &Path, config: &DatasetConfig) -> Result<Dataset, DatasetError> {
@@ -26,7 +30,7 @@ pub fn open(root: &Path, config: &DatasetConfig) -> Result<Dataset, DatasetError
     if !sensor.is_file() {
         return Err(DatasetError::MissingCalibration { path: sensor });
     }
-    let camera = read_sensor_yaml(&sensor)?;
+    let (camera, camera_in_body) = read_sensor_yaml(&sensor)?;
     let list = cam.join("data.csv");
     let text = read_text(&list)?;
     let frames = data_lines(&text)
@@ -60,6 +64,7 @@ pub fn open(root: &Path, config: &DatasetConfig) -> Result<Dataset, DatasetError
         depth_scale: None,
         ground_truth,
         ground_truth_tolerance: config.ground_truth_tolerance,
+        camera_in_body,
     })
 }
 
@@ -71,9 +76,10 @@ fn nanoseconds(field: &str) -> Result<f64, String> {
     Ok((ns / 1_000_000_000) as f64 + (ns % 1_000_000_000) as f64 * 1e-9)
 }
 
-/// The camera of `sensor.yaml`: `intrinsics: [fu, fv, cu, cv]`,
-/// `distortion_coefficients: [k1, k2, p1, p2]`.
-fn read_sensor_yaml(path: &Path) -> Result<Camera, DatasetError> {
+/// The camera of `sensor.yaml` (`intrinsics: [fu, fv, cu, cv]`,
+/// `distortion_coefficients: [k1, k2, p1, p2]`) and its optional `T_BS` (`data:` list of 16
+/// numbers, row-major 4x4).
+fn read_sensor_yaml(path: &Path) -> Result<(Camera, Option<Isometry3<f64>>), DatasetError> {
     let text = read_text(path)?;
     if let Some((line, model)) = yaml_scalar(&text, "distortion_model") {
         if model != "radial-tangential" {
@@ -90,10 +96,46 @@ fn read_sensor_yaml(path: &Path) -> Result<Camera, DatasetError> {
         path: path.to_path_buf(),
         source,
     })?;
-    Ok(Camera::new(
+    let camera = Camera::new(
         pinhole,
         Distortion::from_array([d[0], d[1], d[2], d[3], 0.0]),
-    ))
+    );
+    Ok((camera, read_t_bs(path, &text)?))
+}
+
+/// `T_BS` (camera-to-body) of `sensor.yaml`: the `data:` list following the `T_BS:` line.
+fn read_t_bs(path: &Path, text: &str) -> Result<Option<Isometry3<f64>>, DatasetError> {
+    let Some((line, _)) = yaml_scalar(text, "T_BS") else {
+        return Ok(None);
+    };
+    let below: String = text.lines().skip(line).collect::<Vec<_>>().join("\n");
+    let shift = |e| match e {
+        DatasetError::Parse {
+            path,
+            line: l,
+            message,
+        } => DatasetError::Parse {
+            path,
+            line: if l == 0 { line } else { l + line },
+            message,
+        },
+        other => other,
+    };
+    let m = yaml_list(path, &below, "data", 16).map_err(shift)?;
+    let r = Matrix3::new(m[0], m[1], m[2], m[4], m[5], m[6], m[8], m[9], m[10]);
+    if (r.transpose() * r - Matrix3::identity()).norm() > ROTATION_TOLERANCE
+        || r.determinant() <= 0.0
+    {
+        return Err(parse_error(
+            path,
+            line,
+            "T_BS rotation block is not a rotation",
+        ));
+    }
+    Ok(Some(Isometry3::from_parts(
+        Translation3::new(m[3], m[7], m[11]),
+        UnitQuaternion::from_rotation_matrix(&Rotation3::from_matrix_unchecked(r)),
+    )))
 }
 
 /// `(line, value)` of a top-level `key: value` scalar.

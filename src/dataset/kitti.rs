@@ -45,6 +45,7 @@ pub fn open(root: &Path, config: &DatasetConfig) -> Result<Dataset, DatasetError
         depth_scale: None,
         ground_truth,
         ground_truth_tolerance: config.ground_truth_tolerance,
+        camera_in_body: None,
     })
 }
 

@@ -9,7 +9,7 @@
 //! |---|---|---|---|---|
 //! | [`tum`] | `rgb.txt` | none (caller supplies, see [`tum::tum_preset_for`]) | `depth.txt`, 16-bit PNG / 5000 | `groundtruth.txt`, camera `T_wc` |
 //! | [`kitti`] | `image_0/` + `times.txt` | `calib.txt` line `P0` | none | `poses.txt` or `../../poses/<seq>.txt`, camera `T_wc` |
-//! | [`euroc`] | `mav0/cam0/data.csv` | `mav0/cam0/sensor.yaml` | none | `mav0/state_groundtruth_estimate0/data.csv`, **body (IMU) pose** `T_wb` |
+//! | [`euroc`] | `mav0/cam0/data.csv` | `mav0/cam0/sensor.yaml` | none | `mav0/state_groundtruth_estimate0/data.csv`, **body (IMU) pose** `T_wb` (camera: `T_wb * camera_in_body`) |
 //!
 //! ```
 //! use image::{GrayImage, Luma};
@@ -191,6 +191,10 @@ pub struct Dataset {
     pub ground_truth: Option<Trajectory>,
     /// Maximum |t_frame - t_gt| (s) used by [`Dataset::ground_truth_at`].
     pub ground_truth_tolerance: f64,
+    /// EuRoC only: `T_bc`, the camera pose in the body (IMU) frame (`T_BS` of
+    /// `cam0/sensor.yaml`, maps camera points into the body frame), so that the camera
+    /// ground truth is `T_wc = T_wb * T_bc`. `None` for TUM and KITTI.
+    pub camera_in_body: Option<Isometry3<f64>>,
 }
 
 impl Dataset {

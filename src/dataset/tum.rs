@@ -53,6 +53,7 @@ pub fn open(root: &Path, config: &DatasetConfig) -> Result<Dataset, DatasetError
         depth_scale: depth_list.is_file().then_some(TUM_DEPTH_SCALE),
         ground_truth,
         ground_truth_tolerance: config.ground_truth_tolerance,
+        camera_in_body: None,
     })
 }
 
