@@ -199,6 +199,14 @@ fn degenerate_and_tiny_inputs_are_typed_errors() {
         ate(&two, &two, &config(Alignment::Sim3)),
         Err(EvalError::TooFewPoses(2))
     );
+    let mut nan = room_trajectory_stamped(10);
+    nan.poses[4].1.translation.vector.y = f64::NAN;
+    for alignment in [Alignment::None, Alignment::Se3] {
+        assert_eq!(
+            ate(&nan, &nan, &config(alignment)),
+            Err(EvalError::NotFinite)
+        );
+    }
     let shifted = Trajectory::new(line.poses.iter().map(|(t, p)| (t + 0.5, *p)).collect());
     assert_eq!(
         rpe(&line, &shifted, &EvalConfig::default()),

@@ -6,7 +6,7 @@
 //! default `max_dt = 0.01` s). With `Q_k` the ground truth and `P_k` the estimate of the
 //! `k`-th associated pair (both camera-to-world):
 //!
-//! - alignment: [`umeyama`] on the positions, estimate onto ground truth, giving `S`
+//! - alignment: [`umeyama()`] on the positions, estimate onto ground truth, giving `S`
 //!   (identity for [`Alignment::None`], rigid for [`Alignment::Se3`], similarity for
 //!   [`Alignment::Sim3`]); `P_k <- S P_k` (positions scaled, rotated and shifted);
 //! - ATE: `e_k = |trans(Q_k) - trans(P_k)|` metres (evo `--pose_relation trans_part`);
