@@ -108,8 +108,7 @@ impl Trajectory {
     /// The pose whose timestamp is nearest to `t`, if within `max_dt` seconds:
     /// `(index, T_wc)`. Ties go to the earlier pose.
     pub fn nearest(&self, t: f64, max_dt: f64) -> Option<(usize, &Isometry3<f64>)> {
-        let stamps = self.timestamps();
-        nearest_index(&stamps, t, max_dt).map(|i| (i, &self.poses[i].1))
+        nearest_index_by(&self.poses, |p| p.0, t, max_dt).map(|i| (i, &self.poses[i].1))
     }
 
     /// Parses TUM text (see the module documentation).
@@ -206,21 +205,39 @@ pub fn associate_stamps(a: &[f64], b: &[f64], max_dt: f64) -> Vec<(usize, usize)
 /// search on sorted stamps (the later neighbour wins only when strictly closer), linear
 /// search (first minimum) otherwise.
 pub(crate) fn nearest_index(stamps: &[f64], t: f64, max_dt: f64) -> Option<usize> {
-    let (first, last) = (*stamps.first()?, *stamps.last()?);
-    if !stamps.windows(2).all(|w| w[1] >= w[0]) {
-        let (j, d) = stamps.iter().map(|s| (s - t).abs()).enumerate().fold(
+    nearest_index_by(stamps, |s| *s, t, max_dt)
+}
+
+/// [`nearest_index`] on items whose timestamp is `stamp(item)`.
+fn nearest_index_by<T>(
+    items: &[T],
+    stamp: impl Fn(&T) -> f64,
+    t: f64,
+    max_dt: f64,
+) -> Option<usize> {
+    let (first, last) = (stamp(items.first()?), stamp(items.last()?));
+    if !items.windows(2).all(|w| stamp(&w[1]) >= stamp(&w[0])) {
+        let (j, d) = items.iter().map(|s| (stamp(s) - t).abs()).enumerate().fold(
             (0, f64::INFINITY),
-            |best, (j, d)| if d < best.1 { (j, d) } else { best },
+            |best, (j, d)| {
+                if d < best.1 {
+                    (j, d)
+                } else {
+                    best
+                }
+            },
         );
         return (d <= max_dt).then_some(j);
     }
     if t < first - max_dt || t > last + max_dt {
         return None;
     }
-    let upper = stamps.partition_point(|&s| s <= t).min(stamps.len() - 1);
-    let diff_ub = stamps[upper] - t;
+    let upper = items
+        .partition_point(|s| stamp(s) <= t)
+        .min(items.len() - 1);
+    let diff_ub = stamp(&items[upper]) - t;
     let diff_lb = if upper > 0 {
-        t - stamps[upper - 1]
+        t - stamp(&items[upper - 1])
     } else {
         f64::INFINITY
     };
