@@ -11,7 +11,6 @@
 pub mod dataset;
 pub mod eval;
 pub mod trajectory;
-
 pub use vofront_direct as direct;
 pub use vofront_features as features;
 pub use vofront_fixtures as fixtures;
