@@ -8,6 +8,9 @@
 //! - [`features`]: ORB detection, description and Hamming matching;
 //! - [`direct`]: photometric alignment and KLT;
 //! - [`fixtures`]: synthetic scenes with exact ground truth.
+pub mod dataset;
+pub mod eval;
+pub mod trajectory;
 pub use vofront_direct as direct;
 pub use vofront_features as features;
 pub use vofront_fixtures as fixtures;

@@ -1,0 +1,205 @@
+//! EuRoC MAV sequence folders (ASL format).
+//!
+//! Layout: `mav0/cam0/data.csv` (`timestamp [ns],filename` lines, `#` header),
+//! `mav0/cam0/data/<filename>` (8-bit grey PNG), `mav0/cam0/sensor.yaml` with
+//! `intrinsics: [fu, fv, cu, cv]` and `distortion_coefficients: [k1, k2, p1, p2]`
+//! (`distortion_model: radial-tangential`). Timestamps are converted from nanoseconds to
+//! seconds.
+//!
+//! Ground truth, optional: `mav0/state_groundtruth_estimate0/data.csv`, lines
+//! `t [ns], px, py, pz, qw, qx, qy, qz, ...` (further columns ignored). It is the pose of the
+//! **body (IMU) frame**, `T_wb`, exposed as published; the camera pose is `T_wb * T_bs`
+//! with `T_BS` of `cam0/sensor.yaml` (exposed as [`Dataset::camera_in_body`]), which this
+//! reader does not apply.
+
+use std::path::Path;
+
+use nalgebra::{Isometry3, Matrix3, Quaternion, Rotation3, Translation3, UnitQuaternion};
+use vofront_geometry::camera::{Camera, Distortion, Pinhole};
+
+use super::{parse_error, read_text, Dataset, DatasetConfig, DatasetError, DatasetKind, FrameInfo};
+use crate::trajectory::{data_lines, parse_numbers, Trajectory};
+
+/// Tolerance on `|R^T R - I|` for the rotation block of `T_BS` (published to ~1e-6).
+const ROTATION_TOLERANCE: f64 = 1e-3;
+
+/// Opens a EuRoC MAV folder (the one holding `mav0/`; see the module documentation).
+pub fn open(root: &Path, config: &DatasetConfig) -> Result<Dataset, DatasetError> {
+    let cam = root.join("mav0/cam0");
+    let sensor = cam.join("sensor.yaml");
+    if !sensor.is_file() {
+        return Err(DatasetError::MissingCalibration { path: sensor });
+    }
+    let (camera, camera_in_body) = read_sensor_yaml(&sensor)?;
+    let list = cam.join("data.csv");
+    let text = read_text(&list)?;
+    let frames = data_lines(&text)
+        .map(|(line, fields)| match fields.as_slice() {
+            [stamp, file] => Ok(FrameInfo {
+                timestamp: nanoseconds(stamp).map_err(|m| parse_error(&list, line, m))?,
+                image: cam.join("data").join(file),
+                depth: None,
+            }),
+            _ => Err(parse_error(
+                &list,
+                line,
+                format!(
+                    "expected `timestamp [ns],filename`, found {} fields",
+                    fields.len()
+                ),
+            )),
+        })
+        .collect::<Result<Vec<_>, _>>()?;
+    let gt_path = root.join("mav0/state_groundtruth_estimate0/data.csv");
+    let ground_truth = if gt_path.is_file() {
+        Some(read_ground_truth(&gt_path)?)
+    } else {
+        None
+    };
+    Ok(Dataset {
+        kind: DatasetKind::Euroc,
+        root: root.to_path_buf(),
+        frames,
+        camera: Some(camera),
+        depth_scale: None,
+        ground_truth,
+        ground_truth_tolerance: config.ground_truth_tolerance,
+        camera_in_body,
+    })
+}
+
+/// Seconds from an integer nanosecond timestamp, split to keep full precision.
+fn nanoseconds(field: &str) -> Result<f64, String> {
+    let ns: u64 = field
+        .parse()
+        .map_err(|_| format!("`{field}` is not a timestamp in nanoseconds"))?;
+    Ok((ns / 1_000_000_000) as f64 + (ns % 1_000_000_000) as f64 * 1e-9)
+}
+
+/// The camera of `sensor.yaml` (`intrinsics: [fu, fv, cu, cv]`,
+/// `distortion_coefficients: [k1, k2, p1, p2]`) and its optional `T_BS` (`data:` list of 16
+/// numbers, row-major 4x4).
+fn read_sensor_yaml(path: &Path) -> Result<(Camera, Option<Isometry3<f64>>), DatasetError> {
+    let text = read_text(path)?;
+    if let Some((line, model)) = yaml_scalar(&text, "distortion_model") {
+        if model != "radial-tangential" {
+            return Err(parse_error(
+                path,
+                line,
+                format!("unsupported distortion model `{model}` (only radial-tangential)"),
+            ));
+        }
+    }
+    let k = yaml_list(path, &text, "intrinsics", 4)?;
+    let d = yaml_list(path, &text, "distortion_coefficients", 4)?;
+    let pinhole = Pinhole::new(k[0], k[1], k[2], k[3]).map_err(|source| DatasetError::Camera {
+        path: path.to_path_buf(),
+        source,
+    })?;
+    let camera = Camera::new(
+        pinhole,
+        Distortion::from_array([d[0], d[1], d[2], d[3], 0.0]),
+    );
+    Ok((camera, read_t_bs(path, &text)?))
+}
+
+/// `T_BS` (camera-to-body) of `sensor.yaml`: the `data:` list following the `T_BS:` line.
+fn read_t_bs(path: &Path, text: &str) -> Result<Option<Isometry3<f64>>, DatasetError> {
+    let Some((line, _)) = yaml_scalar(text, "T_BS") else {
+        return Ok(None);
+    };
+    let below: String = text.lines().skip(line).collect::<Vec<_>>().join("\n");
+    let shift = |e| match e {
+        DatasetError::Parse {
+            path,
+            line: l,
+            message,
+        } => DatasetError::Parse {
+            path,
+            line: if l == 0 { line } else { l + line },
+            message,
+        },
+        other => other,
+    };
+    let m = yaml_list(path, &below, "data", 16).map_err(shift)?;
+    let r = Matrix3::new(m[0], m[1], m[2], m[4], m[5], m[6], m[8], m[9], m[10]);
+    if (r.transpose() * r - Matrix3::identity()).norm() > ROTATION_TOLERANCE
+        || r.determinant() <= 0.0
+    {
+        return Err(parse_error(
+            path,
+            line,
+            "T_BS rotation block is not a rotation",
+        ));
+    }
+    Ok(Some(Isometry3::from_parts(
+        Translation3::new(m[3], m[7], m[11]),
+        UnitQuaternion::from_rotation_matrix(&Rotation3::from_matrix_unchecked(r)),
+    )))
+}
+
+/// `(line, value)` of a top-level `key: value` scalar.
+fn yaml_scalar<'a>(text: &'a str, key: &str) -> Option<(usize, &'a str)> {
+    text.lines().enumerate().find_map(|(i, l)| {
+        let rest = l.trim().strip_prefix(key)?.trim_start().strip_prefix(':')?;
+        Some((i + 1, rest.split('#').next()?.trim()))
+    })
+}
+
+/// The `n` numbers of a flow list `key: [a, b, ...]` (which may span lines).
+fn yaml_list(path: &Path, text: &str, key: &str, n: usize) -> Result<Vec<f64>, DatasetError> {
+    let Some((line, _)) = yaml_scalar(text, key) else {
+        return Err(parse_error(path, 0, format!("no `{key}:` entry")));
+    };
+    let tail: String = text.lines().skip(line - 1).collect::<Vec<_>>().join(" ");
+    let body = tail
+        .split_once('[')
+        .and_then(|(_, rest)| rest.split_once(']'))
+        .map(|(inside, _)| inside)
+        .ok_or_else(|| parse_error(path, line, format!("`{key}` is not a `[...]` list")))?;
+    let fields: Vec<&str> = body
+        .split(',')
+        .map(str::trim)
+        .filter(|f| !f.is_empty())
+        .collect();
+    let values = parse_numbers(&fields).map_err(|m| parse_error(path, line, m))?;
+    if values.len() != n {
+        return Err(parse_error(
+            path,
+            line,
+            format!("`{key}` needs {n} numbers, found {}", values.len()),
+        ));
+    }
+    Ok(values)
+}
+
+/// The body poses of `state_groundtruth_estimate0/data.csv`.
+fn read_ground_truth(path: &Path) -> Result<Trajectory, DatasetError> {
+    let text = read_text(path)?;
+    let poses = data_lines(&text)
+        .map(|(line, fields)| {
+            if fields.len() < 8 {
+                return Err(parse_error(
+                    path,
+                    line,
+                    format!(
+                        "expected at least 8 fields `t px py pz qw qx qy qz`, found {}",
+                        fields.len()
+                    ),
+                ));
+            }
+            let t = nanoseconds(fields[0]).map_err(|m| parse_error(path, line, m))?;
+            let v = parse_numbers(&fields[1..8]).map_err(|m| parse_error(path, line, m))?;
+            let q = Quaternion::new(v[3], v[4], v[5], v[6]);
+            if q.norm() < 1e-6 {
+                return Err(parse_error(path, line, "zero quaternion"));
+            }
+            let pose = Isometry3::from_parts(
+                Translation3::new(v[0], v[1], v[2]),
+                UnitQuaternion::from_quaternion(q),
+            );
+            Ok((t, pose))
+        })
+        .collect::<Result<Vec<_>, _>>()?;
+    Ok(Trajectory::new(poses))
+}

@@ -1,0 +1,330 @@
+//! Image-sequence datasets: TUM RGB-D, KITTI odometry and EuRoC MAV folders.
+//!
+//! [`Dataset::open`] detects the format from the folder layout, reads the frame lists,
+//! calibration and optional ground truth, and leaves the images on disk;
+//! [`Dataset::load`] reads one frame on demand. A missing or corrupt image is an `Err` for
+//! that frame index only ([`Dataset::iter`] yields it and moves on).
+//!
+//! | format | detected by | camera | depth | ground truth |
+//! |---|---|---|---|---|
+//! | [`tum`] | `rgb.txt` | none (caller supplies, see [`tum::tum_preset_for`]) | `depth.txt`, 16-bit PNG / 5000 | `groundtruth.txt`, camera `T_wc` |
+//! | [`kitti`] | `image_0/` + `times.txt` | `calib.txt` line `P0` | none | `poses.txt` or `../../poses/<seq>.txt`, camera `T_wc` |
+//! | [`euroc`] | `mav0/cam0/data.csv` | `mav0/cam0/sensor.yaml` | none | `mav0/state_groundtruth_estimate0/data.csv`, **body (IMU) pose** `T_wb` (camera: `T_wb * camera_in_body`) |
+//!
+//! ```
+//! use image::{GrayImage, Luma};
+//! use vofront::dataset::{Dataset, DatasetKind};
+//! let dir = std::env::temp_dir().join(format!("vofront-doc-dataset-{}", std::process::id()));
+//! std::fs::create_dir_all(dir.join("rgb")).unwrap();
+//! std::fs::write(dir.join("rgb.txt"), "# timestamp filename\n1.0 rgb/a.png\n1.1 rgb/b.png\n").unwrap();
+//! GrayImage::from_pixel(4, 3, Luma([9])).save(dir.join("rgb/a.png")).unwrap();
+//!
+//! let data = Dataset::open(&dir).unwrap();
+//! assert_eq!(data.kind, DatasetKind::Tum);
+//! assert_eq!(data.frames.len(), 2);
+//! assert_eq!(data.load(0).unwrap().image.dimensions(), (4, 3));
+//! assert!(data.load(1).is_err()); // rgb/b.png is missing: that frame fails, the run goes on
+//! std::fs::remove_dir_all(&dir).unwrap();
+//! ```
+
+pub mod euroc;
+pub mod kitti;
+pub mod tum;
+
+use std::io;
+use std::path::{Path, PathBuf};
+
+use image::{DynamicImage, GrayImage, ImageBuffer, Luma};
+use nalgebra::Isometry3;
+use thiserror::Error;
+use vofront_geometry::camera::{Camera, CameraError};
+
+use crate::trajectory::{Trajectory, TrajectoryError};
+
+/// Metric depth image: metres, `0.0` where the sensor gave no depth.
+pub type DepthImage = ImageBuffer<Luma<f32>, Vec<f32>>;
+
+/// Errors of dataset opening and frame loading.
+#[derive(Debug, Error)]
+pub enum DatasetError {
+    /// The folder does not exist or is empty.
+    #[error("{0}: folder is empty or does not exist")]
+    Empty(PathBuf),
+    /// The folder layout matches no supported format.
+    #[error("{0}: not a TUM RGB-D (rgb.txt), KITTI (image_0/, times.txt) or EuRoC (mav0/cam0/data.csv) folder")]
+    Unrecognised(PathBuf),
+    /// The format needs a calibration file that is absent.
+    #[error("{path}: calibration file missing")]
+    MissingCalibration {
+        /// The expected calibration file.
+        path: PathBuf,
+    },
+    /// A file could not be read.
+    #[error("{path}: {source}")]
+    Io {
+        /// The file.
+        path: PathBuf,
+        /// The underlying error.
+        source: io::Error,
+    },
+    /// A line of a list, calibration or ground-truth file could not be parsed.
+    #[error("{path}:{line}: {message}")]
+    Parse {
+        /// The file.
+        path: PathBuf,
+        /// One-based line number (0 when the file as a whole lacks an entry).
+        line: usize,
+        /// What is wrong.
+        message: String,
+    },
+    /// A ground-truth file could not be read (see [`TrajectoryError`]).
+    #[error(transparent)]
+    Trajectory(#[from] TrajectoryError),
+    /// The calibration gives an invalid camera.
+    #[error("{path}: {source}")]
+    Camera {
+        /// The calibration file.
+        path: PathBuf,
+        /// Why the camera is invalid.
+        source: CameraError,
+    },
+    /// The dataset lists no frame.
+    #[error("{0}: the dataset lists no frame")]
+    NoFrames(PathBuf),
+    /// A frame index past the end of the frame list.
+    #[error("frame {index} requested, the dataset has {len}")]
+    FrameIndex {
+        /// Requested index.
+        index: usize,
+        /// Number of frames.
+        len: usize,
+    },
+    /// A frame image or depth map is missing or cannot be decoded.
+    #[error("frame {index}: {path}: {source}")]
+    Image {
+        /// Frame index.
+        index: usize,
+        /// The image file.
+        path: PathBuf,
+        /// The decoder error.
+        source: image::ImageError,
+    },
+    /// A depth map is not a single-channel 16-bit image or does not match the image size.
+    #[error("frame {index}: {path}: {message}")]
+    BadDepth {
+        /// Frame index.
+        index: usize,
+        /// The depth file.
+        path: PathBuf,
+        /// What is wrong.
+        message: String,
+    },
+}
+
+/// Which dataset format a folder holds.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum DatasetKind {
+    /// TUM RGB-D benchmark sequence.
+    Tum,
+    /// KITTI odometry sequence (left grey camera `image_0`).
+    Kitti,
+    /// EuRoC MAV sequence (camera `cam0`).
+    Euroc,
+}
+
+/// One frame as listed by the dataset (nothing loaded yet).
+#[derive(Debug, Clone, PartialEq)]
+pub struct FrameInfo {
+    /// Capture time, seconds.
+    pub timestamp: f64,
+    /// The intensity (or colour) image file.
+    pub image: PathBuf,
+    /// The associated depth image file, if any.
+    pub depth: Option<PathBuf>,
+}
+
+/// One loaded frame.
+#[derive(Debug, Clone)]
+pub struct Frame {
+    /// Capture time, seconds.
+    pub timestamp: f64,
+    /// The image, converted to 8-bit grey.
+    pub image: GrayImage,
+    /// Metric depth (metres, 0 = invalid), same size as `image`.
+    pub depth: Option<DepthImage>,
+}
+
+/// Options of [`Dataset::open_with`].
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct DatasetConfig {
+    /// Maximum |t_rgb - t_depth| (s) for a TUM depth map to be paired with an image.
+    pub depth_tolerance: f64,
+    /// Maximum |t_frame - t_gt| (s) for [`Dataset::ground_truth_at`].
+    pub ground_truth_tolerance: f64,
+}
+
+impl Default for DatasetConfig {
+    /// 0.02 s for both, the default of the TUM benchmark's `associate.py`.
+    fn default() -> Self {
+        Self {
+            depth_tolerance: 0.02,
+            ground_truth_tolerance: 0.02,
+        }
+    }
+}
+
+/// An opened dataset folder: frame list, calibration and ground truth.
+#[derive(Debug, Clone)]
+pub struct Dataset {
+    /// The detected format.
+    pub kind: DatasetKind,
+    /// The folder that was opened.
+    pub root: PathBuf,
+    /// Frames in capture order.
+    pub frames: Vec<FrameInfo>,
+    /// The camera from the calibration file; `None` for TUM (no calibration file).
+    pub camera: Option<Camera>,
+    /// Depth-image units per metre (TUM: 5000), `None` without depth.
+    pub depth_scale: Option<f64>,
+    /// Ground truth as published: camera `T_wc` for TUM and KITTI, **body (IMU) `T_wb`** for
+    /// EuRoC (the camera pose is `T_wb * T_bs` with `T_BS` from `cam0/sensor.yaml`).
+    pub ground_truth: Option<Trajectory>,
+    /// Maximum |t_frame - t_gt| (s) used by [`Dataset::ground_truth_at`].
+    pub ground_truth_tolerance: f64,
+    /// EuRoC only: `T_bc`, the camera pose in the body (IMU) frame (`T_BS` of
+    /// `cam0/sensor.yaml`, maps camera points into the body frame), so that the camera
+    /// ground truth is `T_wc = T_wb * T_bc`. `None` for TUM and KITTI.
+    pub camera_in_body: Option<Isometry3<f64>>,
+}
+
+impl Dataset {
+    /// Opens `path` with [`DatasetConfig::default`], detecting the format.
+    pub fn open(path: impl AsRef<Path>) -> Result<Self, DatasetError> {
+        Self::open_with(path, &DatasetConfig::default())
+    }
+
+    /// Opens `path`, detecting the format from its layout (see the module documentation).
+    pub fn open_with(path: impl AsRef<Path>, config: &DatasetConfig) -> Result<Self, DatasetError> {
+        let root = path.as_ref();
+        let mut entries = std::fs::read_dir(root).map_err(|_| DatasetError::Empty(root.into()))?;
+        if entries.next().is_none() {
+            return Err(DatasetError::Empty(root.into()));
+        }
+        let dataset = if root.join("rgb.txt").is_file() {
+            tum::open(root, config)?
+        } else if root.join("image_0").is_dir() && root.join("times.txt").is_file() {
+            kitti::open(root, config)?
+        } else if root.join("mav0/cam0/data.csv").is_file() {
+            euroc::open(root, config)?
+        } else {
+            return Err(DatasetError::Unrecognised(root.into()));
+        };
+        if dataset.frames.is_empty() {
+            return Err(DatasetError::NoFrames(root.into()));
+        }
+        Ok(dataset)
+    }
+
+    /// Number of frames.
+    pub fn len(&self) -> usize {
+        self.frames.len()
+    }
+
+    /// True when there is no frame (never the case for an opened dataset).
+    pub fn is_empty(&self) -> bool {
+        self.frames.is_empty()
+    }
+
+    /// Loads frame `index`: the image as 8-bit grey (colour converted with the `image`
+    /// crate's luma weights) and, if listed, the depth map as metres (`raw / depth_scale`).
+    pub fn load(&self, index: usize) -> Result<Frame, DatasetError> {
+        let info = self.frames.get(index).ok_or(DatasetError::FrameIndex {
+            index,
+            len: self.frames.len(),
+        })?;
+        let image = open_image(index, &info.image)?.into_luma8();
+        let depth = match &info.depth {
+            Some(path) => Some(self.load_depth(index, path, image.dimensions())?),
+            None => None,
+        };
+        Ok(Frame {
+            timestamp: info.timestamp,
+            image,
+            depth,
+        })
+    }
+
+    /// All frames in order as `(index, result)`; a failed frame yields its `Err` and the
+    /// iteration continues.
+    pub fn iter(&self) -> impl Iterator<Item = (usize, Result<Frame, DatasetError>)> + '_ {
+        (0..self.frames.len()).map(|i| (i, self.load(i)))
+    }
+
+    /// The ground-truth pose nearest in time to frame `index`, if within
+    /// [`Dataset::ground_truth_tolerance`] (frame of the pose: see [`Dataset::ground_truth`]).
+    pub fn ground_truth_at(&self, index: usize) -> Option<Isometry3<f64>> {
+        let t = self.frames.get(index)?.timestamp;
+        let gt = self.ground_truth.as_ref()?;
+        gt.nearest(t, self.ground_truth_tolerance).map(|(_, p)| *p)
+    }
+
+    fn load_depth(
+        &self,
+        index: usize,
+        path: &Path,
+        size: (u32, u32),
+    ) -> Result<DepthImage, DatasetError> {
+        let bad = |message: String| DatasetError::BadDepth {
+            index,
+            path: path.to_path_buf(),
+            message,
+        };
+        let raw = match open_image(index, path)? {
+            DynamicImage::ImageLuma16(raw) => raw,
+            other => {
+                return Err(bad(format!(
+                    "expected 16-bit grey, got {:?}",
+                    other.color()
+                )))
+            }
+        };
+        if raw.dimensions() != size {
+            return Err(bad(format!(
+                "depth is {:?}, image is {size:?}",
+                raw.dimensions()
+            )));
+        }
+        let scale = self.depth_scale.unwrap_or(1.0);
+        let metres = raw
+            .as_raw()
+            .iter()
+            .map(|&d| (d as f64 / scale) as f32)
+            .collect();
+        Ok(DepthImage::from_raw(size.0, size.1, metres).expect("same size as the 16-bit depth"))
+    }
+}
+
+fn open_image(index: usize, path: &Path) -> Result<DynamicImage, DatasetError> {
+    image::open(path).map_err(|source| DatasetError::Image {
+        index,
+        path: path.to_path_buf(),
+        source,
+    })
+}
+
+/// Reads a text file of the dataset, mapping the error to [`DatasetError::Io`].
+fn read_text(path: &Path) -> Result<String, DatasetError> {
+    std::fs::read_to_string(path).map_err(|source| DatasetError::Io {
+        path: path.to_path_buf(),
+        source,
+    })
+}
+
+/// A [`DatasetError::Parse`] for `path` at one-based `line`.
+fn parse_error(path: &Path, line: usize, message: impl Into<String>) -> DatasetError {
+    DatasetError::Parse {
+        path: path.to_path_buf(),
+        line,
+        message: message.into(),
+    }
+}
