@@ -1,0 +1,139 @@
+//! Orientation by intensity centroid and steered BRIEF (rBRIEF) descriptors.
+//!
+//! Orientation: with moments `m_pq = sum x^p y^q I(x, y)` over the disc of radius
+//! [`HALF_PATCH`] around the keypoint (offsets `x` right, `y` down, unsmoothed level image),
+//! `theta = atan2(m_01, m_10)` radians.
+//!
+//! Descriptor: each pattern pair `(p1, p2)` of [`BIT_PATTERN_31`] is rotated by `theta`,
+//! `p' = round(R(theta) p)`, and bit `i` is `I_s(k + p1') < I_s(k + p2')` on the level image
+//! smoothed by a 7x7 Gaussian (sigma 2), as in OpenCV's ORB.
+
+use crate::descriptor::Descriptor;
+use crate::pattern::BIT_PATTERN_31;
+use crate::pyramid::Plane;
+
+/// Radius in level pixels of the orientation disc (patch size 31).
+pub(crate) const HALF_PATCH: usize = 15;
+
+/// Smallest distance of a keypoint to the level border for orientation and a rotated pattern:
+/// the pattern reaches `13 sqrt 2 < 18.4` px, rounded to at most 18; the disc reaches 15.
+pub(crate) const MIN_BORDER: usize = 19;
+
+/// Half-width of each row of the orientation disc: `umax[v]` for `v = 0..=HALF_PATCH`, made
+/// symmetric in `u` and `v` so the disc is invariant to 90-degree rotations.
+fn disc_rows() -> [usize; HALF_PATCH + 1] {
+    let r = HALF_PATCH as f64;
+    let mut umax = [0usize; HALF_PATCH + 1];
+    let vmax = (r * std::f64::consts::FRAC_1_SQRT_2 + 1.0).floor() as usize;
+    let vmin = (r * std::f64::consts::FRAC_1_SQRT_2).ceil() as usize;
+    for (v, u) in umax.iter_mut().enumerate().take(vmax + 1) {
+        *u = (r * r - (v * v) as f64).sqrt().round() as usize;
+    }
+    let mut v0 = 0;
+    for v in (vmin..=HALF_PATCH).rev() {
+        while umax[v0] == umax[v0 + 1] {
+            v0 += 1;
+        }
+        umax[v] = v0;
+        v0 += 1;
+    }
+    umax
+}
+
+/// Orientation `atan2(m_01, m_10)` in radians of the keypoint at `(x, y)`, which must be at
+/// least [`HALF_PATCH`] px inside the image.
+pub(crate) fn orientation(img: &Plane, x: usize, y: usize, umax: &[usize; HALF_PATCH + 1]) -> f32 {
+    let w = img.width;
+    let d = &img.data;
+    let centre = y * w + x;
+    let mut m10: i64 = 0;
+    let mut m01: i64 = 0;
+    let r = umax[0];
+    for (u, &p) in d[centre - r..=centre + r].iter().enumerate() {
+        m10 += (u as i64 - r as i64) * p as i64;
+    }
+    for (v, &half) in umax.iter().enumerate().skip(1) {
+        let below = &d[centre + v * w - half..=centre + v * w + half];
+        let above = &d[centre - v * w - half..=centre - v * w + half];
+        let mut vsum: i64 = 0;
+        for (u, (&b, &a)) in below.iter().zip(above).enumerate() {
+            let du = u as i64 - half as i64;
+            vsum += b as i64 - a as i64;
+            m10 += du * (b as i64 + a as i64);
+        }
+        m01 += v as i64 * vsum;
+    }
+    (m01 as f32).atan2(m10 as f32)
+}
+
+/// The steered BRIEF descriptor of the keypoint at `(x, y)` with orientation `angle` radians,
+/// on the smoothed level image; the keypoint must be at least [`MIN_BORDER`] px inside.
+pub(crate) fn brief(smoothed: &Plane, x: usize, y: usize, angle: f32) -> Descriptor {
+    let w = smoothed.width as isize;
+    let d = &smoothed.data;
+    let centre = (y * smoothed.width + x) as isize;
+    let (s, c) = angle.sin_cos();
+    let at = |px: i8, py: i8| {
+        let (px, py) = (px as f32, py as f32);
+        let rx = (px * c - py * s).round() as isize;
+        let ry = (px * s + py * c).round() as isize;
+        d[(centre + ry * w + rx) as usize]
+    };
+    let mut lanes = [0u64; 4];
+    for (lane, pairs) in lanes.iter_mut().zip(BIT_PATTERN_31.chunks_exact(64)) {
+        let mut bits = 0u64;
+        for (b, p) in pairs.iter().enumerate() {
+            bits |= ((at(p[0], p[1]) < at(p[2], p[3])) as u64) << b;
+        }
+        *lane = bits;
+    }
+    Descriptor(lanes)
+}
+
+/// Orientation disc rows, computed once.
+pub(crate) fn umax() -> [usize; HALF_PATCH + 1] {
+    disc_rows()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn disc_is_symmetric_and_round() {
+        let u = umax();
+        assert_eq!(u[0], 15);
+        assert!(u.windows(2).all(|w| w[0] >= w[1]));
+        // Symmetry: the number of rows with half-width >= k equals umax[k] + 1.
+        for k in 0..=HALF_PATCH {
+            let rows = u.iter().filter(|&&h| h >= k).count();
+            assert_eq!(rows, u[k] + 1, "k {k}");
+        }
+    }
+
+    #[test]
+    fn orientation_points_to_the_bright_side() {
+        let w = 41;
+        for (dx, dy, want) in [
+            (1i32, 0i32, 0.0f32),
+            (0, 1, 90.0),
+            (-1, 0, 180.0),
+            (0, -1, -90.0),
+        ] {
+            let data = (0..w * w)
+                .map(|i| {
+                    let (x, y) = ((i % w) as i32 - 20, (i / w) as i32 - 20);
+                    (100 + 5 * (dx * x + dy * y)) as u8
+                })
+                .collect();
+            let img = Plane {
+                width: w,
+                height: w,
+                data,
+            };
+            let a = orientation(&img, 20, 20, &umax()).to_degrees();
+            let diff = (a - want + 540.0).rem_euclid(360.0) - 180.0;
+            assert!(diff.abs() < 0.5, "{a} vs {want}");
+        }
+    }
+}
