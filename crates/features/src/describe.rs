@@ -73,21 +73,31 @@ pub(crate) fn brief(smoothed: &Plane, x: usize, y: usize, angle: f32) -> Descrip
     let d = &smoothed.data;
     let centre = (y * smoothed.width + x) as isize;
     let (s, c) = angle.sin_cos();
-    let at = |px: i8, py: i8| {
-        let (px, py) = (px as f32, py as f32);
-        let rx = (px * c - py * s).round() as isize;
-        let ry = (px * s + py * c).round() as isize;
-        d[(centre + ry * w + rx) as usize]
-    };
+    // Rounded rotated offsets of both points of every pair, as index offsets.
+    let mut offsets = [[0isize; 2]; 256];
+    for (o, p) in offsets.iter_mut().zip(BIT_PATTERN_31.iter()) {
+        for (k, off) in o.iter_mut().enumerate() {
+            let (px, py) = (p[2 * k] as f32, p[2 * k + 1] as f32);
+            *off = round(px * s + py * c) * w + round(px * c - py * s);
+        }
+    }
+    let at = |off: isize| d[(centre + off) as usize];
     let mut lanes = [0u64; 4];
-    for (lane, pairs) in lanes.iter_mut().zip(BIT_PATTERN_31.chunks_exact(64)) {
+    for (lane, pairs) in lanes.iter_mut().zip(offsets.chunks_exact(64)) {
         let mut bits = 0u64;
-        for (b, p) in pairs.iter().enumerate() {
-            bits |= ((at(p[0], p[1]) < at(p[2], p[3])) as u64) << b;
+        for (b, o) in pairs.iter().enumerate() {
+            bits |= ((at(o[0]) < at(o[1])) as u64) << b;
         }
         *lane = bits;
     }
     Descriptor(lanes)
+}
+
+/// Nearest integer of `v` in `(-64, 64)`, halves rounded up; a truncating conversion of a
+/// positive number instead of the `roundf` library call of the baseline x86-64 target.
+#[inline(always)]
+fn round(v: f32) -> isize {
+    (v + 64.5) as isize - 64
 }
 
 /// Orientation disc rows, computed once.

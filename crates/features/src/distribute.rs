@@ -26,14 +26,16 @@ impl Node {
 const MIN_NODE: f32 = 1.0;
 
 /// Indices (into `xs`, `ys`, `responses`) of at most `n` points spread over
-/// `[x0, x1) x [y0, y1)`, best response per quadtree node. Points outside the region are
-/// clamped into it.
+/// `[x0, x1) x [y0, y1)`: the `ceil(candidates * n)` best responses enter the quadtree, which
+/// keeps the best response per node (`candidates <= 1` is plain best-`n` ranking). Points
+/// outside the region are clamped into it. Sorted ascending.
 pub(crate) fn distribute(
     xs: &[f32],
     ys: &[f32],
     responses: &[f32],
     region: (f32, f32, f32, f32),
     n: usize,
+    candidates: f32,
 ) -> Vec<usize> {
     let count = xs.len();
     if n == 0 || count == 0 {
@@ -42,6 +44,33 @@ pub(crate) fn distribute(
     if count <= n {
         return (0..count).collect();
     }
+    let keep = ((n as f32 * candidates).ceil() as usize).max(n);
+    if keep >= count {
+        return quadtree(xs, ys, responses, region, n);
+    }
+    let mut best: Vec<usize> = (0..count).collect();
+    best.select_nth_unstable_by(keep - 1, |&a, &b| {
+        responses[b].total_cmp(&responses[a]).then(a.cmp(&b))
+    });
+    best.truncate(keep);
+    best.sort_unstable();
+    let pick = |v: &[f32]| best.iter().map(|&i| v[i]).collect::<Vec<f32>>();
+    let (bx, by, br) = (pick(xs), pick(ys), pick(responses));
+    quadtree(&bx, &by, &br, region, n)
+        .into_iter()
+        .map(|j| best[j])
+        .collect()
+}
+
+/// The quadtree spread of all the given points (see the module docs).
+fn quadtree(
+    xs: &[f32],
+    ys: &[f32],
+    responses: &[f32],
+    region: (f32, f32, f32, f32),
+    n: usize,
+) -> Vec<usize> {
+    let count = xs.len();
     let (x0, y0, x1, y1) = region;
     let mut idx: Vec<usize> = (0..count).collect();
     // Roughly square root nodes: as many columns as the aspect ratio says.
@@ -177,7 +206,7 @@ mod tests {
             ys.push(50.0 + (i / 5) as f32 * 35.0);
             rs.push(1.0);
         }
-        let kept = distribute(&xs, &ys, &rs, (0.0, 0.0, 200.0, 200.0), 40);
+        let kept = distribute(&xs, &ys, &rs, (0.0, 0.0, 200.0, 200.0), 40, f32::INFINITY);
         assert_eq!(kept.len(), 40);
         let spread = kept.iter().filter(|&&i| i >= 500).count();
         // Every isolated point gets its own node; the last split round may overshoot the
@@ -189,9 +218,9 @@ mod tests {
     fn keeps_all_when_under_budget_and_none_for_zero() {
         let xs = [1.0, 2.0, 3.0];
         assert_eq!(
-            distribute(&xs, &xs, &xs, (0.0, 0.0, 5.0, 5.0), 5),
+            distribute(&xs, &xs, &xs, (0.0, 0.0, 5.0, 5.0), 5, 2.0),
             vec![0, 1, 2]
         );
-        assert!(distribute(&xs, &xs, &xs, (0.0, 0.0, 5.0, 5.0), 0).is_empty());
+        assert!(distribute(&xs, &xs, &xs, (0.0, 0.0, 5.0, 5.0), 0, 2.0).is_empty());
     }
 }

@@ -93,7 +93,10 @@ pub(crate) fn detect_into(img: &Plane, region: Rect, threshold: u8, scores: &mut
         return 0;
     }
     let t = threshold.max(1);
-    let mut mask = vec![0u8; n];
+    let mut hi = vec![0u8; n];
+    let mut lo = vec![0u8; n];
+    let mut bright = vec![0u8; n];
+    let mut dark = vec![0u8; n];
     let mut found = 0;
     for y in region.y0..region.y1 {
         let base = y * w + region.x0;
@@ -101,31 +104,43 @@ pub(crate) fn detect_into(img: &Plane, region: Rect, threshold: u8, scores: &mut
             let s = (base as isize + off) as usize;
             &data[s..s + n]
         };
-        let centre = &data[base..base + n];
-        let (p0, p4, p8, p12) = (
-            at(offsets[0]),
-            at(offsets[4]),
-            at(offsets[8]),
-            at(offsets[12]),
-        );
-        // Quick rejection: a 9-arc contains at least one of each antipodal pair, so a corner
-        // needs (0 or 8) and (4 or 12) all brighter, or all darker. Branch-free, vectorizable.
-        for (i, m) in mask.iter_mut().enumerate() {
-            let v = centre[i];
-            let hi = v.saturating_add(t);
-            let lo = v.saturating_sub(t);
-            let b = |p: &[u8]| p[i] > hi;
-            let k = |p: &[u8]| p[i] < lo;
-            let bright = (b(p0) | b(p8)) & (b(p4) | b(p12));
-            let dark = (k(p0) | k(p8)) & (k(p4) | k(p12));
-            *m = (bright | dark) as u8;
+        for ((h, l), &v) in hi.iter_mut().zip(lo.iter_mut()).zip(&data[base..base + n]) {
+            *h = v.saturating_add(t);
+            *l = v.saturating_sub(t);
         }
-        for (i, _) in mask.iter().enumerate().filter(|(_, &m)| m != 0) {
-            let c = base + i;
-            let score = corner_score(data, c, &offsets);
-            if score >= t as i16 {
-                scores[c] = score.min(255) as u8;
-                found += 1;
+        bright.fill(1);
+        dark.fill(1);
+        // Quick rejection: a 9-arc contains at least one pixel of every antipodal pair
+        // (k, k + 8), so a corner needs that for all 8 pairs, all brighter or all darker.
+        // Branch-free passes over contiguous rows, which LLVM vectorizes.
+        for k in 0..8 {
+            let (a, b) = (at(offsets[k]), at(offsets[k + 8]));
+            for (((((br, dk), &h), &l), &pa), &pb) in bright
+                .iter_mut()
+                .zip(dark.iter_mut())
+                .zip(&hi)
+                .zip(&lo)
+                .zip(a)
+                .zip(b)
+            {
+                *br &= ((pa > h) | (pb > h)) as u8;
+                *dk &= ((pa < l) | (pb < l)) as u8;
+            }
+        }
+        for (chunk, (bc, dc)) in bright.chunks(8).zip(dark.chunks(8)).enumerate() {
+            if bc.iter().zip(dc).all(|(&b, &d)| b | d == 0) {
+                continue;
+            }
+            for (j, (&b, &d)) in bc.iter().zip(dc).enumerate() {
+                if b | d == 0 {
+                    continue;
+                }
+                let c = base + chunk * 8 + j;
+                let score = corner_score(data, c, &offsets);
+                if score >= t as i16 {
+                    scores[c] = score.min(255) as u8;
+                    found += 1;
+                }
             }
         }
     }

@@ -28,6 +28,11 @@ pub struct OrbConfig {
     /// Keypoints closer than this to a level border are dropped (at least 19 px is enforced so
     /// the rotated pattern fits).
     pub edge_threshold: usize,
+    /// Spread versus strength: per level, the `spread_candidates * n` corners of highest
+    /// Harris response enter the quadtree that keeps one per node. `1.0` is plain Harris
+    /// ranking (OpenCV-like, most repeatable on blurred images); `f32::INFINITY` spreads over
+    /// every corner (ORB-SLAM-like, most uniform).
+    pub spread_candidates: f32,
     /// Side of the BRIEF patch in level pixels; only 31 (the learned pattern) is supported.
     pub patch_size: usize,
 }
@@ -41,6 +46,7 @@ impl Default for OrbConfig {
             fast_threshold: 20,
             min_fast_threshold: 7,
             edge_threshold: 19,
+            spread_candidates: 1.5,
             patch_size: 31,
         }
     }
@@ -95,7 +101,8 @@ struct Candidates {
 
 impl Orb {
     /// Validates `cfg`: `levels` in 1..=32, finite `scale_factor > 1` (or `levels == 1`),
-    /// thresholds `1 <= min_fast_threshold <= fast_threshold`, `patch_size == 31`.
+    /// thresholds `1 <= min_fast_threshold <= fast_threshold`, `spread_candidates >= 1`,
+    /// `patch_size == 31`.
     pub fn new(cfg: OrbConfig) -> Result<Self, FeatureError> {
         let bad = |what: &'static str| Err(FeatureError::InvalidConfig(what));
         if !(1..=32).contains(&cfg.levels) {
@@ -109,6 +116,9 @@ impl Orb {
         }
         if cfg.min_fast_threshold > cfg.fast_threshold {
             return bad("min_fast_threshold must be <= fast_threshold");
+        }
+        if cfg.spread_candidates.is_nan() || cfg.spread_candidates < 1.0 {
+            return bad("spread_candidates must be >= 1");
         }
         if cfg.patch_size != 31 {
             return bad("patch_size must be 31 (the learned BRIEF pattern)");
@@ -218,7 +228,14 @@ impl Orb {
             (level.image.width - border) as f32,
             (level.image.height - border) as f32,
         );
-        let keep = distribute(&cand.xs, &cand.ys, &cand.responses, region, n);
+        let keep = distribute(
+            &cand.xs,
+            &cand.ys,
+            &cand.responses,
+            region,
+            n,
+            self.cfg.spread_candidates,
+        );
         let mut f = Features::default();
         for i in keep {
             let (x, y) = (cand.xs[i] as usize, cand.ys[i] as usize);
