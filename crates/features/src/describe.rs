@@ -69,23 +69,21 @@ pub(crate) fn orientation(img: &Plane, x: usize, y: usize, umax: &[usize; HALF_P
 /// The steered BRIEF descriptor of the keypoint at `(x, y)` with orientation `angle` radians,
 /// on the smoothed level image; the keypoint must be at least [`MIN_BORDER`] px inside.
 pub(crate) fn brief(smoothed: &Plane, x: usize, y: usize, angle: f32) -> Descriptor {
-    let w = smoothed.width as isize;
+    let w = smoothed.width as i32;
     let d = &smoothed.data;
-    let centre = (y * smoothed.width + x) as isize;
+    let centre = y * smoothed.width + x;
     let (s, c) = angle.sin_cos();
-    // Rounded rotated offsets of both points of every pair, as index offsets.
-    let mut offsets = [[0isize; 2]; 256];
-    for (o, p) in offsets.iter_mut().zip(BIT_PATTERN_31.iter()) {
-        for (k, off) in o.iter_mut().enumerate() {
-            let (px, py) = (p[2 * k] as f32, p[2 * k + 1] as f32);
-            *off = round(px * s + py * c) * w + round(px * c - py * s);
-        }
+    let pattern = pattern_points();
+    // Rounded rotated offsets of all 512 points as index offsets, in one vectorizable pass.
+    let mut offsets = [0i32; 512];
+    for ((o, &px), &py) in offsets.iter_mut().zip(&pattern.0).zip(&pattern.1) {
+        *o = round(px * s + py * c) * w + round(px * c - py * s);
     }
-    let at = |off: isize| d[(centre + off) as usize];
+    let at = |off: i32| d[(centre as isize + off as isize) as usize];
     let mut lanes = [0u64; 4];
-    for (lane, pairs) in lanes.iter_mut().zip(offsets.chunks_exact(64)) {
+    for (lane, pairs) in lanes.iter_mut().zip(offsets.chunks_exact(128)) {
         let mut bits = 0u64;
-        for (b, o) in pairs.iter().enumerate() {
+        for (b, o) in pairs.chunks_exact(2).enumerate() {
             bits |= ((at(o[0]) < at(o[1])) as u64) << b;
         }
         *lane = bits;
@@ -93,11 +91,29 @@ pub(crate) fn brief(smoothed: &Plane, x: usize, y: usize, angle: f32) -> Descrip
     Descriptor(lanes)
 }
 
-/// Nearest integer of `v` in `(-64, 64)`, halves rounded up; a truncating conversion of a
-/// positive number instead of the `roundf` library call of the baseline x86-64 target.
+/// The 512 points of [`BIT_PATTERN_31`] (pair `i` is points `2i`, `2i + 1`) as x and y arrays.
+fn pattern_points() -> &'static ([f32; 512], [f32; 512]) {
+    static POINTS: std::sync::OnceLock<([f32; 512], [f32; 512])> = std::sync::OnceLock::new();
+    POINTS.get_or_init(|| {
+        let mut xs = [0f32; 512];
+        let mut ys = [0f32; 512];
+        for (i, p) in BIT_PATTERN_31.iter().enumerate() {
+            xs[2 * i] = p[0] as f32;
+            ys[2 * i] = p[1] as f32;
+            xs[2 * i + 1] = p[2] as f32;
+            ys[2 * i + 1] = p[3] as f32;
+        }
+        (xs, ys)
+    })
+}
+
+/// Nearest integer of `v` (`|v| < 2^22`), halves to even like OpenCV's `cvRound`: adding
+/// `1.5 * 2^23` leaves the rounded integer in the low mantissa bits. Unlike `f32::round` or a
+/// saturating `as` cast this is a plain add and subtract, so the pattern loop vectorizes.
 #[inline(always)]
-fn round(v: f32) -> isize {
-    (v + 64.5) as isize - 64
+fn round(v: f32) -> i32 {
+    const MAGIC: f32 = 12_582_912.0;
+    (v + MAGIC).to_bits() as i32 - MAGIC.to_bits() as i32
 }
 
 /// Orientation disc rows, computed once.
@@ -108,6 +124,21 @@ pub(crate) fn umax() -> [usize; HALF_PATCH + 1] {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn magic_rounding_is_round_half_even() {
+        for (v, want) in [
+            (0.4f32, 0),
+            (0.5, 0),
+            (1.5, 2),
+            (-1.5, -2),
+            (-0.6, -1),
+            (18.38, 18),
+            (-18.5, -18),
+        ] {
+            assert_eq!(round(v), want, "{v}");
+        }
+    }
 
     #[test]
     fn disc_is_symmetric_and_round() {

@@ -82,6 +82,67 @@ fn corner_score(data: &[u8], c: usize, offsets: &[isize; 16]) -> i16 {
     bright.max(dark) - 1
 }
 
+/// Pixels per block of the quick test.
+const LANES: usize = 16;
+
+/// Quick rejection for pixels `x..x + 16` of a row: a 9-arc contains at least one pixel of
+/// every antipodal pair `(k, k + 8)`, so a corner needs that for all 8 pairs, all brighter
+/// than `I + t` or all darker than `I - t`. Fixed-size, branch-free lanes that LLVM keeps in
+/// vector registers; the pairs `(0, 8)` and `(4, 12)` are tried first to skip empty blocks.
+/// Returns a bit mask of the surviving pixels.
+#[inline(always)]
+fn quick_test(centre: &[u8], ring: &[&[u8]; 16], x: usize, t: u8) -> u32 {
+    let block =
+        |s: &[u8]| -> [u8; LANES] { s[x..x + LANES].try_into().expect("block of LANES pixels") };
+    let v = block(centre);
+    let hi: [u8; LANES] = std::array::from_fn(|i| v[i].saturating_add(t));
+    let lo: [u8; LANES] = std::array::from_fn(|i| v[i].saturating_sub(t));
+    let mut bright = [0xffu8; LANES];
+    let mut dark = [0xffu8; LANES];
+    let pair = |k: usize, bright: &mut [u8; LANES], dark: &mut [u8; LANES]| {
+        let (a, b) = (block(ring[k]), block(ring[k + 8]));
+        for i in 0..LANES {
+            let br = (a[i] > hi[i]) | (b[i] > hi[i]);
+            let dk = (a[i] < lo[i]) | (b[i] < lo[i]);
+            bright[i] &= 0u8.wrapping_sub(br as u8);
+            dark[i] &= 0u8.wrapping_sub(dk as u8);
+        }
+    };
+    let any = |bright: &[u8; LANES], dark: &[u8; LANES]| {
+        u128::from_ne_bytes(*bright) | u128::from_ne_bytes(*dark) != 0
+    };
+    pair(0, &mut bright, &mut dark);
+    pair(4, &mut bright, &mut dark);
+    if !any(&bright, &dark) {
+        return 0;
+    }
+    for k in [2, 6, 1, 3, 5, 7] {
+        pair(k, &mut bright, &mut dark);
+    }
+    let mut mask = 0u32;
+    for i in 0..LANES {
+        mask |= (((bright[i] | dark[i]) != 0) as u32) << i;
+    }
+    mask
+}
+
+/// [`quick_test`] for a last block of `len < 16` pixels, one pixel at a time.
+fn quick_test_tail(centre: &[u8], ring: &[&[u8]; 16], x: usize, len: usize, t: u8) -> u32 {
+    let mut mask = 0u32;
+    for i in 0..len {
+        let v = centre[x + i];
+        let (hi, lo) = (v.saturating_add(t), v.saturating_sub(t));
+        let (mut bright, mut dark) = (true, true);
+        for k in 0..8 {
+            let (a, b) = (ring[k][x + i], ring[k + 8][x + i]);
+            bright &= a > hi || b > hi;
+            dark &= a < lo || b < lo;
+        }
+        mask |= ((bright || dark) as u32) << i;
+    }
+    mask
+}
+
 /// Runs FAST at `threshold` (>= 1) over `region` (at least 3 px inside the image), writing
 /// the score of every corner into `scores` (same layout as the image) and counting corners.
 pub(crate) fn detect_into(img: &Plane, region: Rect, threshold: u8, scores: &mut [u8]) -> usize {
@@ -93,55 +154,35 @@ pub(crate) fn detect_into(img: &Plane, region: Rect, threshold: u8, scores: &mut
         return 0;
     }
     let t = threshold.max(1);
-    let mut hi = vec![0u8; n];
-    let mut lo = vec![0u8; n];
-    let mut bright = vec![0u8; n];
-    let mut dark = vec![0u8; n];
     let mut found = 0;
     for y in region.y0..region.y1 {
         let base = y * w + region.x0;
-        let at = |off: isize| {
+        let row = |off: isize| {
             let s = (base as isize + off) as usize;
             &data[s..s + n]
         };
-        for ((h, l), &v) in hi.iter_mut().zip(lo.iter_mut()).zip(&data[base..base + n]) {
-            *h = v.saturating_add(t);
-            *l = v.saturating_sub(t);
-        }
-        bright.fill(1);
-        dark.fill(1);
-        // Quick rejection: a 9-arc contains at least one pixel of every antipodal pair
-        // (k, k + 8), so a corner needs that for all 8 pairs, all brighter or all darker.
-        // Branch-free passes over contiguous rows, which LLVM vectorizes.
-        for k in 0..8 {
-            let (a, b) = (at(offsets[k]), at(offsets[k + 8]));
-            for (((((br, dk), &h), &l), &pa), &pb) in bright
-                .iter_mut()
-                .zip(dark.iter_mut())
-                .zip(&hi)
-                .zip(&lo)
-                .zip(a)
-                .zip(b)
-            {
-                *br &= ((pa > h) | (pb > h)) as u8;
-                *dk &= ((pa < l) | (pb < l)) as u8;
-            }
-        }
-        for (chunk, (bc, dc)) in bright.chunks(8).zip(dark.chunks(8)).enumerate() {
-            if bc.iter().zip(dc).all(|(&b, &d)| b | d == 0) {
-                continue;
-            }
-            for (j, (&b, &d)) in bc.iter().zip(dc).enumerate() {
-                if b | d == 0 {
-                    continue;
-                }
-                let c = base + chunk * 8 + j;
+        let centre = row(0);
+        let ring: [&[u8]; 16] = std::array::from_fn(|k| row(offsets[k]));
+        let mut x = 0;
+        while x < n {
+            let len = LANES.min(n - x);
+            let mask = if len == LANES {
+                quick_test(centre, &ring, x, t)
+            } else {
+                quick_test_tail(centre, &ring, x, len, t)
+            };
+            let mut m = mask;
+            while m != 0 {
+                let j = m.trailing_zeros() as usize;
+                m &= m - 1;
+                let c = base + x + j;
                 let score = corner_score(data, c, &offsets);
                 if score >= t as i16 {
                     scores[c] = score.min(255) as u8;
                     found += 1;
                 }
             }
+            x += len;
         }
     }
     found
