@@ -1,9 +1,9 @@
 //! FAST-9 corners: 16-pixel Bresenham circle of radius 3, a contiguous arc of at least 9
 //! pixels all brighter than `I(p) + t` or all darker than `I(p) - t`.
 //!
-//! The corner score is the largest threshold at which the pixel is still a corner:
-//! `score = max over 9-arcs A of max(min_{q in A} (I(q) - I(p)), min_{q in A} (I(p) - I(q))) - 1`,
-//! so a pixel is a corner at threshold `t` iff `score >= t`. Detection runs in two passes per
+//! The corner score, used only for non-maximum suppression (Harris ranks the survivors), is
+//! the sum of absolute differences to the centre over the brighter or darker circle pixels.
+//! Detection runs in two passes per
 //! grid cell (threshold fallback): `fast_threshold` everywhere, then `min_fast_threshold` in
 //! the cells where the first pass found nothing; then a 3x3 non-maximum suppression on the score.
 
@@ -43,7 +43,7 @@ pub(crate) struct Rect {
 pub(crate) struct Corner {
     pub x: u32,
     pub y: u32,
-    pub score: u8,
+    pub score: u16,
 }
 
 /// Index offsets of the circle for a row stride.
@@ -51,35 +51,40 @@ fn circle_offsets(stride: usize) -> [isize; 16] {
     CIRCLE.map(|(dx, dy)| dy * stride as isize + dx)
 }
 
-/// Score of the pixel at index `c` (see the module docs); negative when no 9-arc differs at all.
+/// The exact FAST-9 test at threshold `t` and the corner score. 16-bit masks of the
+/// brighter (`> I + t`) and darker (`< I - t`) circle pixels are searched for a run of 9 set
+/// bits (with wrap-around) by shifting and AND-ing. The score of a corner is
+/// `max(sum_bright (I(q) - I(p)), sum_dark (I(p) - I(q)))` over the polarity that has an arc
+/// (Rosten and Drummond's sum of absolute differences), `None` if not a corner.
 #[inline]
-fn corner_score(data: &[u8], c: usize, offsets: &[isize; 16]) -> i16 {
-    let v = data[c] as i16;
-    let mut d = [0i16; 32];
-    for (k, off) in offsets.iter().enumerate() {
-        let q = data[(c as isize + off) as usize] as i16 - v;
-        d[k] = q;
-        d[k + 16] = q;
+fn corner_score(data: &[u8], c: usize, offsets: &[isize; 16], t: u8) -> Option<u16> {
+    let v = data[c];
+    let (hi, lo) = (v.saturating_add(t), v.saturating_sub(t));
+    let ring: [u8; 16] = std::array::from_fn(|k| data[(c as isize + offsets[k]) as usize]);
+    let (mut bright, mut dark) = (0u32, 0u32);
+    for (k, &p) in ring.iter().enumerate() {
+        bright |= ((p > hi) as u32) << k;
+        dark |= ((p < lo) as u32) << k;
     }
-    // Sliding min / max over windows of 9 by doubling: 2, 4, 8, then 8 + 1.
-    let mut mn = [0i16; 24];
-    let mut mx = [0i16; 24];
-    for k in 0..24 {
-        mn[k] = d[k].min(d[k + 1]);
-        mx[k] = d[k].max(d[k + 1]);
+    // Over the brighter pixels, sum (p - v) = sum sat(p - hi) + t * count, and likewise for
+    // the darker ones: saturating byte differences that vectorize.
+    let over: u16 = ring.iter().map(|&p| p.saturating_sub(hi) as u16).sum();
+    let under: u16 = ring.iter().map(|&p| lo.saturating_sub(p) as u16).sum();
+    let sum_bright = over + t as u16 * bright.count_ones() as u16;
+    let sum_dark = under + t as u16 * dark.count_ones() as u16;
+    let arc9 = |m: u32| {
+        let m = m | (m << 16);
+        let a = m & (m >> 1);
+        let a = a & (a >> 2);
+        let a = a & (a >> 4);
+        a & (m >> 8) & 0xffff != 0
+    };
+    match (arc9(bright), arc9(dark)) {
+        (false, false) => None,
+        (true, false) => Some(sum_bright),
+        (false, true) => Some(sum_dark),
+        (true, true) => Some(sum_bright.max(sum_dark)),
     }
-    for k in 0..20 {
-        mn[k] = mn[k].min(mn[k + 2]);
-        mx[k] = mx[k].max(mx[k + 2]);
-    }
-    let (mut bright, mut dark) = (i16::MIN, i16::MIN);
-    for k in 0..16 {
-        let lo = mn[k].min(mn[k + 4]).min(d[k + 8]);
-        let hi = mx[k].max(mx[k + 4]).max(d[k + 8]);
-        bright = bright.max(lo);
-        dark = dark.max(-hi);
-    }
-    bright.max(dark) - 1
 }
 
 /// Pixels per block of the quick test.
@@ -144,17 +149,23 @@ fn quick_test_tail(centre: &[u8], ring: &[&[u8]; 16], x: usize, len: usize, t: u
 }
 
 /// Runs FAST at `threshold` (>= 1) over `region` (at least 3 px inside the image), writing
-/// the score of every corner into `scores` (same layout as the image) and counting corners.
-pub(crate) fn detect_into(img: &Plane, region: Rect, threshold: u8, scores: &mut [u8]) -> usize {
+/// the score of every corner into `scores` (same layout as the image) and appending the
+/// pixel indices of the corners, in raster order, to `corners`.
+pub(crate) fn detect_into(
+    img: &Plane,
+    region: Rect,
+    threshold: u8,
+    scores: &mut [u16],
+    corners: &mut Vec<usize>,
+) {
     let w = img.width;
     let data = &img.data;
     let offsets = circle_offsets(w);
     let n = region.x1.saturating_sub(region.x0);
     if n == 0 {
-        return 0;
+        return;
     }
     let t = threshold.max(1);
-    let mut found = 0;
     for y in region.y0..region.y1 {
         let base = y * w + region.x0;
         let row = |off: isize| {
@@ -168,6 +179,10 @@ pub(crate) fn detect_into(img: &Plane, region: Rect, threshold: u8, scores: &mut
             let len = LANES.min(n - x);
             let mask = if len == LANES {
                 quick_test(centre, &ring, x, t)
+            } else if n >= LANES {
+                // Last partial block: test the full block ending at the row end, keep the
+                // pixels not tested yet.
+                quick_test(centre, &ring, n - LANES, t) >> (LANES - len)
             } else {
                 quick_test_tail(centre, &ring, x, len, t)
             };
@@ -176,16 +191,15 @@ pub(crate) fn detect_into(img: &Plane, region: Rect, threshold: u8, scores: &mut
                 let j = m.trailing_zeros() as usize;
                 m &= m - 1;
                 let c = base + x + j;
-                let score = corner_score(data, c, &offsets);
-                if score >= t as i16 {
-                    scores[c] = score.min(255) as u8;
-                    found += 1;
+                if let Some(score) = corner_score(data, c, &offsets, t) {
+                    // A score is at least 9 (t + 1) > 0, so 0 marks "no corner".
+                    scores[c] = score;
+                    corners.push(c);
                 }
             }
             x += len;
         }
     }
-    found
 }
 
 /// Cell side in level pixels for the threshold fallback grid (as ORB-SLAM).
@@ -193,60 +207,62 @@ pub(crate) const CELL: usize = 30;
 
 /// FAST with per-cell threshold fallback and 3x3 non-maximum suppression over `region`.
 pub(crate) fn detect(img: &Plane, region: Rect, threshold: u8, min_threshold: u8) -> Vec<Corner> {
-    let mut scores = vec![0u8; img.width * img.height];
     if region.x1 <= region.x0 || region.y1 <= region.y0 {
         return Vec::new();
     }
-    detect_into(img, region, threshold, &mut scores);
+    let w = img.width;
+    let mut scores = vec![0u16; w * img.height];
+    let mut corners = Vec::new();
+    detect_into(img, region, threshold, &mut scores, &mut corners);
     if min_threshold < threshold {
-        for cy in (region.y0..region.y1).step_by(CELL) {
-            for cx in (region.x0..region.x1).step_by(CELL) {
-                let cell = Rect {
-                    x0: cx,
-                    y0: cy,
-                    x1: (cx + CELL).min(region.x1),
-                    y1: (cy + CELL).min(region.y1),
-                };
-                let empty = (cell.y0..cell.y1).all(|y| {
-                    scores[y * img.width + cell.x0..y * img.width + cell.x1]
-                        .iter()
-                        .all(|&s| s == 0)
-                });
-                if empty {
-                    detect_into(img, cell, min_threshold, &mut scores);
-                }
-            }
+        let cols = (region.x1 - region.x0).div_ceil(CELL);
+        let rows = (region.y1 - region.y0).div_ceil(CELL);
+        let mut filled = vec![false; cols * rows];
+        for &c in &corners {
+            let (x, y) = (c % w - region.x0, c / w - region.y0);
+            filled[(y / CELL) * cols + x / CELL] = true;
+        }
+        for (cell, _) in filled.iter().enumerate().filter(|(_, &f)| !f) {
+            let (cx, cy) = (
+                region.x0 + (cell % cols) * CELL,
+                region.y0 + (cell / cols) * CELL,
+            );
+            let rect = Rect {
+                x0: cx,
+                y0: cy,
+                x1: (cx + CELL).min(region.x1),
+                y1: (cy + CELL).min(region.y1),
+            };
+            detect_into(img, rect, min_threshold, &mut scores, &mut corners);
         }
     }
-    suppress(&scores, img.width, region)
+    suppress(&scores, w, &corners)
 }
 
-/// 3x3 non-maximum suppression: keeps a corner whose score beats the neighbours before it
-/// in raster order strictly and the ones after it or equally (one survivor per plateau).
-fn suppress(scores: &[u8], w: usize, region: Rect) -> Vec<Corner> {
-    let mut out = Vec::new();
-    for y in region.y0..region.y1 {
-        let (up, row, down) = (
-            &scores[(y - 1) * w..y * w],
-            &scores[y * w..(y + 1) * w],
-            &scores[(y + 1) * w..(y + 2) * w],
-        );
-        for x in region.x0..region.x1 {
-            let s = row[x];
-            if s == 0 {
-                continue;
-            }
-            let earlier = s > up[x - 1] && s > up[x] && s > up[x + 1] && s > row[x - 1];
-            let later = s >= row[x + 1] && s >= down[x - 1] && s >= down[x] && s >= down[x + 1];
-            if earlier && later {
-                out.push(Corner {
-                    x: x as u32,
-                    y: y as u32,
-                    score: s,
-                });
-            }
-        }
-    }
+/// 3x3 non-maximum suppression of the `corners` (pixel indices at least 1 px inside the
+/// image): keeps a corner whose score beats the neighbours before it in raster order strictly
+/// and the ones after it or equally (one survivor per plateau). Output in raster order.
+fn suppress(scores: &[u16], w: usize, corners: &[usize]) -> Vec<Corner> {
+    let mut out: Vec<Corner> = corners
+        .iter()
+        .filter(|&&c| {
+            let s = scores[c];
+            let (up, down) = (c - w, c + w);
+            let earlier =
+                s > scores[up - 1] && s > scores[up] && s > scores[up + 1] && s > scores[c - 1];
+            let later = s >= scores[c + 1]
+                && s >= scores[down - 1]
+                && s >= scores[down]
+                && s >= scores[down + 1];
+            earlier && later
+        })
+        .map(|&c| Corner {
+            x: (c % w) as u32,
+            y: (c / w) as u32,
+            score: scores[c],
+        })
+        .collect();
+    out.sort_unstable_by_key(|c| (c.y, c.x));
     out
 }
 
@@ -288,28 +304,53 @@ mod tests {
             // FAST fires within a few pixels of a sharp corner; NMS keeps one per corner.
             let near = |v: u32| v.abs_diff(10) <= 3 || v.abs_diff(29) <= 3;
             assert!(near(c.x) && near(c.y), "{c:?}");
-            // Contrast is 160 grey levels, the score is the largest passing threshold.
-            assert!(c.score >= 100, "{c:?}");
+            // Contrast is 160 grey levels over at least 9 circle pixels.
+            assert!(c.score >= 9 * 160, "{c:?}");
         }
     }
 
     #[test]
-    fn score_is_the_largest_threshold_that_still_detects() {
-        let img = square(40);
-        let region = Rect {
-            x0: 3,
-            y0: 3,
-            x1: 37,
-            y1: 37,
+    fn threshold_and_score_follow_contrast() {
+        // A single bright pixel of contrast 50 on a flat background: a corner below
+        // threshold 50 only, scored 16 * 50 (all circle pixels darker by 50).
+        let mut img = Plane {
+            width: 9,
+            height: 9,
+            data: vec![100; 81],
         };
-        let mut scores = vec![0u8; 1600];
-        detect_into(&img, region, 1, &mut scores);
-        let (i, &s) = scores.iter().enumerate().max_by_key(|(_, &s)| s).unwrap();
-        let mut again = vec![0u8; 1600];
-        detect_into(&img, region, s, &mut again);
-        assert_eq!(again[i], s);
-        let mut none = vec![0u8; 1600];
-        detect_into(&img, region, s + 1, &mut none);
-        assert_eq!(none[i], 0);
+        img.data[40] = 150;
+        let region = Rect {
+            x0: 4,
+            y0: 4,
+            x1: 5,
+            y1: 5,
+        };
+        let mut scores = vec![0u16; 81];
+        let mut corners = Vec::new();
+        detect_into(&img, region, 49, &mut scores, &mut corners);
+        assert_eq!((corners.clone(), scores[40]), (vec![40], 800));
+        corners.clear();
+        detect_into(&img, region, 50, &mut vec![0u16; 81], &mut corners);
+        assert!(corners.is_empty());
+    }
+
+    #[test]
+    fn an_arc_of_8_is_not_a_corner_but_9_is() {
+        for (arc, want) in [(8usize, false), (9, true)] {
+            let mut img = Plane {
+                width: 9,
+                height: 9,
+                data: vec![100; 81],
+            };
+            for &(dx, dy) in CIRCLE.iter().cycle().skip(5).take(arc) {
+                img.data[((4 + dy) * 9 + 4 + dx) as usize] = 200;
+            }
+            let offsets = circle_offsets(9);
+            assert_eq!(
+                corner_score(&img.data, 40, &offsets, 20).is_some(),
+                want,
+                "{arc}"
+            );
+        }
     }
 }

@@ -73,23 +73,46 @@ pub(crate) fn gaussian_blur7(src: &Plane) -> Plane {
         horizontal_row(s, t);
     }
     let mut data = vec![0u8; w * h];
-    let mut acc = vec![0u32; w];
     for (y, out) in data.chunks_exact_mut(w).enumerate() {
-        acc.iter_mut().for_each(|a| *a = 1 << 15);
-        for (k, &g) in GAUSS7.iter().enumerate() {
+        let rows: [&[u16]; 7] = std::array::from_fn(|k| {
             let sy = (y + k).saturating_sub(3).min(h - 1);
-            for (a, &t) in acc.iter_mut().zip(&tmp[sy * w..(sy + 1) * w]) {
-                *a += g * t as u32;
-            }
-        }
-        for (o, &a) in out.iter_mut().zip(&acc) {
-            *o = (a >> 16) as u8;
-        }
+            &tmp[sy * w..(sy + 1) * w]
+        });
+        vertical_row(&rows, out);
     }
     Plane {
         width: w,
         height: h,
         data,
+    }
+}
+
+/// Vertical pass of one output row, `out[x] = round(sum_k GAUSS7[k] rows[k][x] / 2^16)`, in
+/// fixed blocks whose accumulators stay in vector registers.
+fn vertical_row(rows: &[&[u16]; 7], out: &mut [u8]) {
+    const B: usize = 16;
+    let w = out.len();
+    let blocks = w / B * B;
+    for (bi, o) in out[..blocks].chunks_exact_mut(B).enumerate() {
+        let x = bi * B;
+        let mut acc = [1u32 << 15; B];
+        for (r, &g) in rows.iter().zip(&GAUSS7) {
+            let r: &[u16; B] = r[x..x + B].try_into().expect("block of B pixels");
+            for i in 0..B {
+                acc[i] += g * r[i] as u32;
+            }
+        }
+        for i in 0..B {
+            o[i] = (acc[i] >> 16) as u8;
+        }
+    }
+    for x in blocks..w {
+        let acc: u32 = rows
+            .iter()
+            .zip(&GAUSS7)
+            .map(|(r, &g)| g * r[x] as u32)
+            .sum();
+        out[x] = ((acc + (1 << 15)) >> 16) as u8;
     }
 }
 
