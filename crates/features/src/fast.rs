@@ -330,7 +330,7 @@ mod tests {
         detect_into(&img, region, 49, &mut scores, &mut corners);
         assert_eq!((corners.clone(), scores[40]), (vec![40], 800));
         corners.clear();
-        detect_into(&img, region, 50, &mut vec![0u16; 81], &mut corners);
+        detect_into(&img, region, 50, &mut [0u16; 81], &mut corners);
         assert!(corners.is_empty());
     }
 
