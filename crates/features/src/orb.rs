@@ -6,7 +6,7 @@ use rayon::prelude::*;
 
 use crate::describe::{self, MIN_BORDER};
 use crate::distribute::distribute;
-use crate::fast::{self, Rect};
+use crate::fast::{self, Corner, Rect};
 use crate::harris;
 use crate::pyramid::{self, Level, Plane};
 use crate::{Descriptor, FeatureError};
@@ -92,13 +92,6 @@ pub struct Orb {
     umax: [usize; describe::HALF_PATCH + 1],
 }
 
-/// Candidates of one level after FAST and non-maximum suppression, in level pixels.
-struct Candidates {
-    xs: Vec<f32>,
-    ys: Vec<f32>,
-    responses: Vec<f32>,
-}
-
 impl Orb {
     /// Validates `cfg`: `levels` in 1..=32, finite `scale_factor > 1` (or `levels == 1`),
     /// thresholds `1 <= min_fast_threshold <= fast_threshold`, `spread_candidates >= 1`,
@@ -151,7 +144,7 @@ impl Orb {
             data: image.as_raw().clone(),
         };
         let levels = pyramid::build(base, cfg.levels, cfg.scale_factor, 2 * border + 1);
-        let detected: Vec<(Candidates, Plane)> = levels
+        let detected: Vec<(Vec<Corner>, Plane)> = levels
             .par_iter()
             .map(|level| {
                 rayon::join(
@@ -164,7 +157,7 @@ impl Orb {
             .iter()
             .map(|l| l.image.width * l.image.height)
             .collect();
-        let available: Vec<usize> = detected.iter().map(|(c, _)| c.xs.len()).collect();
+        let available: Vec<usize> = detected.iter().map(|(c, _)| c.len()).collect();
         let budget = allocate(cfg.n_features, &areas, &available);
         let per_level: Vec<Features> = levels
             .par_iter()
@@ -188,40 +181,52 @@ impl Orb {
         Ok(out)
     }
 
-    /// FAST corners with fallback and NMS inside the border, ranked by Harris response.
-    fn candidates(&self, img: &Plane, border: usize) -> Candidates {
+    /// FAST corners with threshold fallback and non-maximum suppression inside the border.
+    fn candidates(&self, img: &Plane, border: usize) -> Vec<Corner> {
         let region = Rect {
             x0: border,
             y0: border,
             x1: img.width - border,
             y1: img.height - border,
         };
-        let corners = fast::detect(
+        fast::detect(
             img,
             region,
             self.cfg.fast_threshold,
             self.cfg.min_fast_threshold,
-        );
-        Candidates {
-            xs: corners.iter().map(|c| c.x as f32).collect(),
-            ys: corners.iter().map(|c| c.y as f32).collect(),
-            responses: corners
-                .iter()
-                .map(|c| harris::response(img, c.x as usize, c.y as usize))
-                .collect(),
-        }
+        )
     }
 
-    /// Spreads `n` of a level's candidates with the quadtree, then orients and describes them.
+    /// Ranks a level's corners (the `2 spread_candidates n` best FAST scores get a Harris
+    /// response, as OpenCV keeps `2 n` before Harris), spreads `n` of them with the quadtree,
+    /// then orients and describes them.
     fn describe_level(
         &self,
         l: u8,
         level: &Level,
-        cand: &Candidates,
+        corners: &[Corner],
         smooth: &Plane,
         border: usize,
         n: usize,
     ) -> Features {
+        let pre = 2.0 * self.cfg.spread_candidates * n as f32;
+        let mut corners = corners.to_vec();
+        if pre.is_finite() && (pre.ceil() as usize) < corners.len() {
+            let m = pre.ceil() as usize;
+            corners.select_nth_unstable_by(m - 1, |a, b| {
+                b.score.cmp(&a.score).then((a.y, a.x).cmp(&(b.y, b.x)))
+            });
+            corners.truncate(m);
+            corners.sort_unstable_by_key(|c| (c.y, c.x));
+        }
+        let cand = Candidates {
+            xs: corners.iter().map(|c| c.x as f32).collect(),
+            ys: corners.iter().map(|c| c.y as f32).collect(),
+            responses: corners
+                .iter()
+                .map(|c| harris::response(&level.image, c.x as usize, c.y as usize))
+                .collect(),
+        };
         let region = (
             border as f32,
             border as f32,
@@ -250,6 +255,13 @@ impl Orb {
         }
         f
     }
+}
+
+/// Corners of one level in level pixels with their Harris responses.
+struct Candidates {
+    xs: Vec<f32>,
+    ys: Vec<f32>,
+    responses: Vec<f32>,
 }
 
 /// Splits `n` features across levels in proportion to their area, then hands the share a

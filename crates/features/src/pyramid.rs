@@ -65,16 +65,22 @@ pub(crate) fn resize_bilinear(src: &Plane, width: usize, height: usize) -> Plane
 /// with `g_i = exp(-i^2 / 8)`, `i = -3..=3`, centre adjusted so the taps sum to 256.
 const GAUSS7: [u32; 7] = [18, 34, 49, 54, 49, 34, 18];
 
-/// Separable 7x7 Gaussian blur (sigma 2 px), borders replicated.
+/// Separable 7x7 Gaussian blur (sigma 2 px), borders replicated. Both passes use 8-bit
+/// fixed-point taps; the horizontal result is rounded to 8 bits so the vertical pass
+/// accumulates in 16-bit lanes (at most 255 * 256).
 pub(crate) fn gaussian_blur7(src: &Plane) -> Plane {
     let (w, h) = (src.width, src.height);
-    let mut tmp = vec![0u16; w * h];
+    let mut tmp = vec![0u8; w * h];
+    let mut acc = vec![0u16; w];
     for (t, s) in tmp.chunks_exact_mut(w).zip(src.data.chunks_exact(w)) {
-        horizontal_row(s, t);
+        horizontal_row(s, &mut acc);
+        for (o, &a) in t.iter_mut().zip(&acc) {
+            *o = ((a as u32 + 128) >> 8) as u8;
+        }
     }
     let mut data = vec![0u8; w * h];
     for (y, out) in data.chunks_exact_mut(w).enumerate() {
-        let rows: [&[u16]; 7] = std::array::from_fn(|k| {
+        let rows: [&[u8]; 7] = std::array::from_fn(|k| {
             let sy = (y + k).saturating_sub(3).min(h - 1);
             &tmp[sy * w..(sy + 1) * w]
         });
@@ -87,23 +93,23 @@ pub(crate) fn gaussian_blur7(src: &Plane) -> Plane {
     }
 }
 
-/// Vertical pass of one output row, `out[x] = round(sum_k GAUSS7[k] rows[k][x] / 2^16)`, in
-/// fixed blocks whose accumulators stay in vector registers.
-fn vertical_row(rows: &[&[u16]; 7], out: &mut [u8]) {
+/// Vertical pass of one output row, `out[x] = round(sum_k GAUSS7[k] rows[k][x] / 256)`, in
+/// fixed blocks whose 16-bit accumulators stay in vector registers.
+fn vertical_row(rows: &[&[u8]; 7], out: &mut [u8]) {
     const B: usize = 16;
     let w = out.len();
     let blocks = w / B * B;
     for (bi, o) in out[..blocks].chunks_exact_mut(B).enumerate() {
         let x = bi * B;
-        let mut acc = [1u32 << 15; B];
+        let mut acc = [128u16; B];
         for (r, &g) in rows.iter().zip(&GAUSS7) {
-            let r: &[u16; B] = r[x..x + B].try_into().expect("block of B pixels");
+            let r: &[u8; B] = r[x..x + B].try_into().expect("block of B pixels");
             for i in 0..B {
-                acc[i] += g * r[i] as u32;
+                acc[i] += g as u16 * r[i] as u16;
             }
         }
         for i in 0..B {
-            o[i] = (acc[i] >> 16) as u8;
+            o[i] = (acc[i] >> 8) as u8;
         }
     }
     for x in blocks..w {
@@ -112,7 +118,7 @@ fn vertical_row(rows: &[&[u16]; 7], out: &mut [u8]) {
             .zip(&GAUSS7)
             .map(|(r, &g)| g * r[x] as u32)
             .sum();
-        out[x] = ((acc + (1 << 15)) >> 16) as u8;
+        out[x] = ((acc + 128) >> 8) as u8;
     }
 }
 
