@@ -31,7 +31,9 @@ pub struct OrbConfig {
     /// Spread versus strength: per level, the `spread_candidates * n` corners of highest
     /// Harris response enter the quadtree that keeps one per node. `1.0` is plain Harris
     /// ranking (OpenCV-like, most repeatable on blurred images); `f32::INFINITY` spreads over
-    /// every corner (ORB-SLAM-like, most uniform).
+    /// every corner (ORB-SLAM-like, most uniform). The default 1.1 keeps about as many
+    /// geometrically verified matches as OpenCV's ORB on TUM frames while still evening out
+    /// dense clusters; larger values cost verified matches on motion-blurred frames.
     pub spread_candidates: f32,
     /// Side of the BRIEF patch in level pixels; only 31 (the learned pattern) is supported.
     pub patch_size: usize,
@@ -46,7 +48,7 @@ impl Default for OrbConfig {
             fast_threshold: 20,
             min_fast_threshold: 7,
             edge_threshold: 19,
-            spread_candidates: 1.5,
+            spread_candidates: 1.1,
             patch_size: 31,
         }
     }
