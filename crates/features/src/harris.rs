@@ -16,7 +16,8 @@ pub(crate) const HALF_BLOCK: usize = 3;
 pub(crate) fn response(img: &Plane, x: usize, y: usize) -> f32 {
     let w = img.width;
     let d = &img.data;
-    let (mut a, mut b, mut c) = (0i64, 0i64, 0i64);
+    // |g| <= 4 * 255, so 49 products stay below 2^26: i32 sums are exact.
+    let (mut a, mut b, mut c) = (0i32, 0i32, 0i32);
     for yy in y - HALF_BLOCK..=y + HALF_BLOCK {
         let up = &d[(yy - 1) * w..yy * w];
         let mid = &d[yy * w..(yy + 1) * w];
@@ -29,9 +30,9 @@ pub(crate) fn response(img: &Plane, x: usize, y: usize) -> f32 {
             let gy = (p(down, xx - 1) - p(up, xx - 1))
                 + 2 * (p(down, xx) - p(up, xx))
                 + (p(down, xx + 1) - p(up, xx + 1));
-            a += (gx * gx) as i64;
-            b += (gy * gy) as i64;
-            c += (gx * gy) as i64;
+            a += gx * gx;
+            b += gy * gy;
+            c += gx * gy;
         }
     }
     let scale = 1.0 / (4.0 * (2 * HALF_BLOCK + 1) as f64 * 255.0);
