@@ -23,7 +23,7 @@ pub struct OrbConfig {
     /// FAST threshold in grey levels: a corner needs a 9-arc all brighter than `I + t` or all
     /// darker than `I - t`.
     pub fast_threshold: u8,
-    /// Lower FAST threshold used in the 30x30-pixel cells where `fast_threshold` found nothing.
+    /// Lower FAST threshold used in the 32x32-pixel cells where `fast_threshold` found nothing.
     pub min_fast_threshold: u8,
     /// Keypoints closer than this to a level border are dropped (at least 19 px is enforced so
     /// the rotated pattern fits).
