@@ -1,9 +1,10 @@
 //! ORB on two images, kNN-2 + ratio matching, timings and a CSV of the matches.
 //!
-//! `cargo run --release -p vofront-features --example orb_match -- IMG1 IMG2 [N] [OUT.csv]`
+//! `cargo run --release -p vofront-features --example orb_match -- IMG1 IMG2 [N] [OUT.csv] [ranked]`
 //!
 //! Prints one line of timings (median of 15 runs; detect+describe with 1 and 2 rayon threads,
 //! kNN-2 with 1 thread) and writes `x1,y1,x2,y2,distance` per match to `OUT.csv` if given.
+//! `ranked` selects [`OrbConfig::ranked`] instead of the default configuration.
 
 use std::io::Write;
 use std::time::Instant;
@@ -25,14 +26,18 @@ fn median_ms(reps: usize, mut f: impl FnMut()) -> f64 {
 fn main() -> Result<(), Box<dyn std::error::Error>> {
     let args: Vec<String> = std::env::args().skip(1).collect();
     if args.len() < 2 {
-        return Err("usage: orb_match IMG1 IMG2 [N] [OUT.csv]".into());
+        return Err("usage: orb_match IMG1 IMG2 [N] [OUT.csv] [ranked]".into());
     }
     let i1 = image::open(&args[0])?.to_luma8();
     let i2 = image::open(&args[1])?.to_luma8();
     let n = args.get(2).map_or(Ok(2000), |s| s.parse())?;
+    let base = match args.get(4).map(String::as_str) {
+        Some("ranked") => OrbConfig::ranked(),
+        _ => OrbConfig::default(),
+    };
     let orb = Orb::new(OrbConfig {
         n_features: n,
-        ..OrbConfig::default()
+        ..base
     })?;
     let pool = |k| rayon::ThreadPoolBuilder::new().num_threads(k).build();
     let (one, two) = (pool(1)?, pool(2)?);

@@ -54,6 +54,20 @@ impl Default for OrbConfig {
     }
 }
 
+impl OrbConfig {
+    /// OpenCV-like selection: plain Harris ranking (`spread_candidates = 1`) and no threshold
+    /// fallback (`min_fast_threshold = fast_threshold`). Less uniform than the default but
+    /// the most geometrically verified matches on motion-blurred frames (TUM fr1: 1062 and
+    /// 976 F-inliers against OpenCV's 1043 and 929 at 2000 features, default: 951 and 893).
+    pub fn ranked() -> Self {
+        Self {
+            spread_candidates: 1.0,
+            min_fast_threshold: 20,
+            ..Self::default()
+        }
+    }
+}
+
 /// ORB features as a structure of arrays; entry `i` of every vector is feature `i`.
 /// Positions are level-0 pixels (pixel `(0, 0)` is the centre of the top-left pixel).
 #[derive(Debug, Clone, Default, PartialEq)]

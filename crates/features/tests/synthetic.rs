@@ -236,4 +236,5 @@ fn bad_input_gives_empty_results_or_typed_errors() {
         assert!(matches!(Orb::new(cfg), Err(FeatureError::InvalidConfig(_))));
     }
     assert!(match_descriptors(&[], &[], &MatchConfig::default()).is_empty());
+    assert!(Orb::new(OrbConfig::ranked()).is_ok());
 }
