@@ -1,1 +1,63 @@
-//! ORB features and Hamming matching (in progress).
+//! ORB features and Hamming matching for vofront.
+//!
+//! - [`Orb`]: image pyramid (`levels` levels, ratio `scale_factor`), FAST-9 corners with a
+//!   per-cell threshold fallback and non-maximum suppression, Harris ranking, a quadtree
+//!   spread of `n_features` split across levels in proportion to their area, orientation by
+//!   intensity centroid and steered BRIEF with the learned ORB pattern ([`pattern`]), so the
+//!   256-bit [`Descriptor`]s compare with OpenCV's ORB;
+//! - [`match_descriptors`]: brute-force Hamming kNN-2 with ratio test, cross-check and maximum
+//!   distance, parallel with rayon;
+//! - [`match_windowed`]: the same restricted to a radius around predicted positions, for
+//!   frame-to-frame tracking.
+//!
+//! Positions are level-0 pixels, x right, y down, `(0, 0)` the centre of the top-left pixel.
+//!
+//! ```
+//! use image::GrayImage;
+//! use vofront_features::{match_descriptors, MatchConfig, Orb, OrbConfig};
+//! // A checkerboard of 12-px squares with a gradient: plenty of corners.
+//! let img = GrayImage::from_fn(160, 120, |x, y| {
+//!     image::Luma([if (x / 12 + y / 12) % 2 == 0 { 40 + (x / 2) as u8 } else { 210 - (y / 2) as u8 }])
+//! });
+//! let orb = Orb::new(OrbConfig { n_features: 200, ..OrbConfig::default() }).unwrap();
+//! let f = orb.detect_and_describe(&img).unwrap();
+//! assert!(f.len() > 20 && f.len() <= 200);
+//! let m = match_descriptors(&f.descriptors, &f.descriptors, &MatchConfig { ratio: None, ..MatchConfig::default() });
+//! assert!(m.iter().all(|m| m.distance == 0));
+//! ```
+#![warn(missing_docs)]
+
+mod describe;
+pub mod descriptor;
+mod distribute;
+mod fast;
+mod harris;
+pub mod matching;
+pub mod orb;
+pub mod pattern;
+mod pyramid;
+pub mod windowed;
+
+pub use descriptor::Descriptor;
+pub use matching::{knn2, match_descriptors, Knn2, Match, MatchConfig};
+pub use orb::{Features, Orb, OrbConfig};
+pub use windowed::match_windowed;
+
+/// Errors of feature detection and matching.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum FeatureError {
+    /// A configuration value is out of range.
+    #[error("invalid configuration: {0}")]
+    InvalidConfig(&'static str),
+    /// A per-feature input has the wrong length.
+    #[error("expected {expected} entries (one per query feature), got {got}")]
+    LengthMismatch {
+        /// Number of query features.
+        expected: usize,
+        /// Length given.
+        got: usize,
+    },
+    /// A search radius that is negative or not finite.
+    #[error("invalid search radius {0}")]
+    InvalidRadius(f32),
+}

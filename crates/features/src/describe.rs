@@ -1,0 +1,181 @@
+//! Orientation by intensity centroid and steered BRIEF (rBRIEF) descriptors.
+//!
+//! Orientation: with moments `m_pq = sum x^p y^q I(x, y)` over the disc of radius
+//! [`HALF_PATCH`] around the keypoint (offsets `x` right, `y` down, unsmoothed level image),
+//! `theta = atan2(m_01, m_10)` radians.
+//!
+//! Descriptor: each pattern pair `(p1, p2)` of [`BIT_PATTERN_31`] is rotated by `theta`,
+//! `p' = round(R(theta) p)`, and bit `i` is `I_s(k + p1') < I_s(k + p2')` on the level image
+//! smoothed by a 7x7 Gaussian (sigma 2), as in OpenCV's ORB.
+
+use crate::descriptor::Descriptor;
+use crate::pattern::BIT_PATTERN_31;
+use crate::pyramid::Plane;
+
+/// Radius in level pixels of the orientation disc (patch size 31).
+pub(crate) const HALF_PATCH: usize = 15;
+
+/// Smallest distance of a keypoint to the level border for orientation and a rotated pattern:
+/// the pattern reaches `13 sqrt 2 < 18.4` px, rounded to at most 18; the disc reaches 15.
+pub(crate) const MIN_BORDER: usize = 19;
+
+/// Half-width of each row of the orientation disc: `umax[v]` for `v = 0..=HALF_PATCH`, made
+/// symmetric in `u` and `v` so the disc is invariant to 90-degree rotations.
+fn disc_rows() -> [usize; HALF_PATCH + 1] {
+    let r = HALF_PATCH as f64;
+    let mut umax = [0usize; HALF_PATCH + 1];
+    let vmax = (r * std::f64::consts::FRAC_1_SQRT_2 + 1.0).floor() as usize;
+    let vmin = (r * std::f64::consts::FRAC_1_SQRT_2).ceil() as usize;
+    for (v, u) in umax.iter_mut().enumerate().take(vmax + 1) {
+        *u = (r * r - (v * v) as f64).sqrt().round() as usize;
+    }
+    let mut v0 = 0;
+    for v in (vmin..=HALF_PATCH).rev() {
+        while umax[v0] == umax[v0 + 1] {
+            v0 += 1;
+        }
+        umax[v] = v0;
+        v0 += 1;
+    }
+    umax
+}
+
+/// Orientation `atan2(m_01, m_10)` in radians of the keypoint at `(x, y)`, which must be at
+/// least [`HALF_PATCH`] px inside the image.
+pub(crate) fn orientation(img: &Plane, x: usize, y: usize, umax: &[usize; HALF_PATCH + 1]) -> f32 {
+    let w = img.width;
+    let d = &img.data;
+    let centre = y * w + x;
+    // |moment| <= 15 * 255 * 709 pixels < 2^22: i32 sums are exact.
+    let mut m10: i32 = 0;
+    let mut m01: i32 = 0;
+    let r = umax[0];
+    for (u, &p) in d[centre - r..=centre + r].iter().enumerate() {
+        m10 += (u as i32 - r as i32) * p as i32;
+    }
+    for (v, &half) in umax.iter().enumerate().skip(1) {
+        let below = &d[centre + v * w - half..=centre + v * w + half];
+        let above = &d[centre - v * w - half..=centre - v * w + half];
+        let mut vsum: i32 = 0;
+        for (u, (&b, &a)) in below.iter().zip(above).enumerate() {
+            let du = u as i32 - half as i32;
+            vsum += b as i32 - a as i32;
+            m10 += du * (b as i32 + a as i32);
+        }
+        m01 += v as i32 * vsum;
+    }
+    (m01 as f32).atan2(m10 as f32)
+}
+
+/// The steered BRIEF descriptor of the keypoint at `(x, y)` with orientation `angle` radians,
+/// on the smoothed level image; the keypoint must be at least [`MIN_BORDER`] px inside.
+pub(crate) fn brief(smoothed: &Plane, x: usize, y: usize, angle: f32) -> Descriptor {
+    let w = smoothed.width as i32;
+    let d = &smoothed.data;
+    let centre = y * smoothed.width + x;
+    let (s, c) = angle.sin_cos();
+    let pattern = pattern_points();
+    // Rounded rotated offsets of all 512 points as index offsets, in one vectorizable pass.
+    let mut offsets = [0i32; 512];
+    for ((o, &px), &py) in offsets.iter_mut().zip(&pattern.0).zip(&pattern.1) {
+        *o = round(px * s + py * c) * w + round(px * c - py * s);
+    }
+    let at = |off: i32| d[(centre as isize + off as isize) as usize];
+    let mut lanes = [0u64; 4];
+    for (lane, pairs) in lanes.iter_mut().zip(offsets.chunks_exact(128)) {
+        let mut bits = 0u64;
+        for (b, o) in pairs.chunks_exact(2).enumerate() {
+            bits |= ((at(o[0]) < at(o[1])) as u64) << b;
+        }
+        *lane = bits;
+    }
+    Descriptor(lanes)
+}
+
+/// The 512 points of [`BIT_PATTERN_31`] (pair `i` is points `2i`, `2i + 1`) as x and y arrays.
+fn pattern_points() -> &'static ([f32; 512], [f32; 512]) {
+    static POINTS: std::sync::OnceLock<([f32; 512], [f32; 512])> = std::sync::OnceLock::new();
+    POINTS.get_or_init(|| {
+        let mut xs = [0f32; 512];
+        let mut ys = [0f32; 512];
+        for (i, p) in BIT_PATTERN_31.iter().enumerate() {
+            xs[2 * i] = p[0] as f32;
+            ys[2 * i] = p[1] as f32;
+            xs[2 * i + 1] = p[2] as f32;
+            ys[2 * i + 1] = p[3] as f32;
+        }
+        (xs, ys)
+    })
+}
+
+/// Nearest integer of `v` (`|v| < 2^22`), halves to even like OpenCV's `cvRound`: adding
+/// `1.5 * 2^23` leaves the rounded integer in the low mantissa bits. Unlike `f32::round` or a
+/// saturating `as` cast this is a plain add and subtract, so the pattern loop vectorizes.
+#[inline(always)]
+fn round(v: f32) -> i32 {
+    const MAGIC: f32 = 12_582_912.0;
+    (v + MAGIC).to_bits() as i32 - MAGIC.to_bits() as i32
+}
+
+/// Orientation disc rows, computed once.
+pub(crate) fn umax() -> [usize; HALF_PATCH + 1] {
+    disc_rows()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn magic_rounding_is_round_half_even() {
+        for (v, want) in [
+            (0.4f32, 0),
+            (0.5, 0),
+            (1.5, 2),
+            (-1.5, -2),
+            (-0.6, -1),
+            (18.38, 18),
+            (-18.5, -18),
+        ] {
+            assert_eq!(round(v), want, "{v}");
+        }
+    }
+
+    #[test]
+    fn disc_is_symmetric_and_round() {
+        let u = umax();
+        assert_eq!(u[0], 15);
+        assert!(u.windows(2).all(|w| w[0] >= w[1]));
+        // Symmetry: the number of rows with half-width >= k equals umax[k] + 1.
+        for k in 0..=HALF_PATCH {
+            let rows = u.iter().filter(|&&h| h >= k).count();
+            assert_eq!(rows, u[k] + 1, "k {k}");
+        }
+    }
+
+    #[test]
+    fn orientation_points_to_the_bright_side() {
+        let w = 41;
+        for (dx, dy, want) in [
+            (1i32, 0i32, 0.0f32),
+            (0, 1, 90.0),
+            (-1, 0, 180.0),
+            (0, -1, -90.0),
+        ] {
+            let data = (0..w * w)
+                .map(|i| {
+                    let (x, y) = ((i % w) as i32 - 20, (i / w) as i32 - 20);
+                    (100 + 5 * (dx * x + dy * y)) as u8
+                })
+                .collect();
+            let img = Plane {
+                width: w,
+                height: w,
+                data,
+            };
+            let a = orientation(&img, 20, 20, &umax()).to_degrees();
+            let diff = (a - want + 540.0).rem_euclid(360.0) - 180.0;
+            assert!(diff.abs() < 0.5, "{a} vs {want}");
+        }
+    }
+}
