@@ -200,7 +200,7 @@ impl Se3Reference {
         let mut fixed = [false; 8];
         fixed[6] = !cfg.affine_brightness;
         fixed[7] = !cfg.affine_brightness;
-        let step_weights = SVector::<f64, 8>::from([1.0, 1.0, 1.0, 1.0, 1.0, 1.0, 0.0, 0.0]);
+        let step_weights = SVector::<f64, 8>::from([1.0, 1.0, 1.0, 1.0, 1.0, 1.0, 1e-2, 1e-4]);
         let settings = LmSettings {
             loss: cfg.loss,
             min_sigma: cfg.min_sigma,
