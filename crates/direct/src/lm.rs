@@ -6,7 +6,7 @@
 //! scale `s = 1.4826 median |r_i|` (floored), weights `w_i = psi(r_i/s) / (r_i/s)`, step
 //! `(H + lambda diag H) delta = -g` (with parameters held fixed replaced by identity rows),
 //! acceptance when the mean robust cost `s^2 mean rho(r_i / s)` decreases, `lambda` divided by
-//! 10 on success and multiplied by 10 on failure.
+//! 10 on success and multiplied by 10 on failure; a few failures in a row end the level.
 
 use nalgebra::{SMatrix, SVector};
 use rayon::prelude::*;
@@ -18,6 +18,10 @@ use crate::error::DirectError;
 
 /// Residuals per rayon task in the parallel reductions.
 pub(crate) const CHUNK: usize = 4096;
+
+/// Consecutive rejected steps (each with ten times more damping) that end a level: the
+/// linearisation no longer predicts the cost, which happens at the noise floor of the minimum.
+const MAX_REJECTIONS: usize = 4;
 
 /// At most this many residuals feed the median of the scale estimate (a strided subset).
 const SCALE_SAMPLES: usize = 20_000;
@@ -150,6 +154,7 @@ pub(crate) fn run_level<P: LevelProblem<M>, const M: usize>(
     let mut cost = mean_robust_cost(&cfg.loss, scale, problem.residuals());
     let mut ne = problem.normal_equations(&cfg.loss, scale);
     let mut lambda = 0.0;
+    let mut rejections = 0;
     let mut reason = Convergence::MaxIterations;
     let mut iterations = 0;
     while iterations < cfg.max_iterations {
@@ -168,6 +173,7 @@ pub(crate) fn run_level<P: LevelProblem<M>, const M: usize>(
             let relative = (cost - trial_cost) / cost.max(f64::MIN_POSITIVE);
             state = candidate;
             valid = trial_valid;
+            rejections = 0;
             lambda *= 0.1;
             scale = robust_scale(problem.residuals(), cfg.min_sigma);
             cost = mean_robust_cost(&cfg.loss, scale, problem.residuals());
@@ -187,7 +193,8 @@ pub(crate) fn run_level<P: LevelProblem<M>, const M: usize>(
                 break;
             }
             lambda = (lambda * 10.0).max(1e-3);
-            if lambda > 1e6 {
+            rejections += 1;
+            if rejections >= MAX_REJECTIONS {
                 reason = Convergence::NoDecrease;
                 break;
             }

@@ -130,16 +130,23 @@ impl Plane {
         // Horizontal pass, decimated: `tmp[y][x2]` for every source row.
         let mut tmp = vec![0f32; w2 * h];
         for (src, dst) in self.data.chunks_exact(w).zip(tmp.chunks_exact_mut(w2)) {
-            for (x2, out) in dst.iter_mut().enumerate() {
+            let tap5 =
+                |a: f32, b: f32, c: f32, d: f32, e: f32| (a + e + 4.0 * (b + d) + 6.0 * c) * 0.0625;
+            // Interior outputs (all five taps inside) without clamping.
+            let interior = if w >= 5 { (w - 3) / 2 } else { 0 };
+            for (x2, out) in dst.iter_mut().enumerate().take(interior + 1).skip(1) {
+                let s = &src[2 * x2 - 2..2 * x2 + 3];
+                *out = tap5(s[0], s[1], s[2], s[3], s[4]);
+            }
+            for x2 in (0..w2).filter(|&x2| x2 == 0 || x2 > interior) {
                 let c = 2 * x2 as isize;
-                let taps = [
+                dst[x2] = tap5(
                     src[clamp_x(c - 2)],
                     src[clamp_x(c - 1)],
                     src[clamp_x(c)],
                     src[clamp_x(c + 1)],
                     src[clamp_x(c + 2)],
-                ];
-                *out = (taps[0] + taps[4] + 4.0 * (taps[1] + taps[3]) + 6.0 * taps[2]) * 0.0625;
+                );
             }
         }
         // Vertical pass over whole rows (vectorizes).
@@ -156,6 +163,47 @@ impl Plane {
         Plane {
             width: w2,
             height: h2,
+            data: out,
+        }
+    }
+
+    /// The plane blurred by the binomial kernel `[1 4 6 4 1] / 16` in both directions (a
+    /// Gaussian of sigma 1 pixel), borders replicated.
+    pub fn blur(&self) -> Plane {
+        let (w, h) = (self.width, self.height);
+        if w == 0 || h == 0 {
+            return self.clone();
+        }
+        let tap5 =
+            |a: f32, b: f32, c: f32, d: f32, e: f32| (a + e + 4.0 * (b + d) + 6.0 * c) * 0.0625;
+        let mut tmp = vec![0f32; w * h];
+        for (src, dst) in self.data.chunks_exact(w).zip(tmp.chunks_exact_mut(w)) {
+            if w >= 5 {
+                for (i, o) in dst[2..w - 2].iter_mut().enumerate() {
+                    *o = tap5(src[i], src[i + 1], src[i + 2], src[i + 3], src[i + 4]);
+                }
+            }
+            let cl = |x: isize| src[x.clamp(0, w as isize - 1) as usize];
+            for x in (0..w).filter(|&x| x < 2 || x + 2 >= w) {
+                let c = x as isize;
+                dst[x] = tap5(cl(c - 2), cl(c - 1), cl(c), cl(c + 1), cl(c + 2));
+            }
+        }
+        let mut out = vec![0f32; w * h];
+        let row = |y: isize| {
+            let y = y.clamp(0, h as isize - 1) as usize;
+            &tmp[y * w..(y + 1) * w]
+        };
+        for (y, dst) in out.chunks_exact_mut(w).enumerate() {
+            let c = y as isize;
+            let (a, b, m, d, e) = (row(c - 2), row(c - 1), row(c), row(c + 1), row(c + 2));
+            for (i, o) in dst.iter_mut().enumerate() {
+                *o = tap5(a[i], b[i], m[i], d[i], e[i]);
+            }
+        }
+        Plane {
+            width: w,
+            height: h,
             data: out,
         }
     }

@@ -27,6 +27,8 @@ pub struct TranslationConfig {
     pub min_step: f64,
     /// Pixels of image 1 with a smaller gradient magnitude (grey levels per pixel) are unused.
     pub gradient_threshold: f32,
+    /// At most about this many pixels per level, those with the largest gradients.
+    pub max_pixels: usize,
     /// Robust loss on residuals in sigmas (MAD scale re-estimated every iteration).
     pub loss: Loss,
     /// Floor of the residual scale, grey levels.
@@ -38,6 +40,8 @@ pub struct TranslationConfig {
     /// Largest acceptable Jacobi-scaled condition number of the 2x2 normal matrix; above it
     /// the gradients are treated as collinear (aperture problem).
     pub max_condition: f64,
+    /// Blur both images by a sigma-1 binomial kernel first (see [`WarpConfig::presmooth`]).
+    pub presmooth: bool,
 }
 
 impl Default for TranslationConfig {
@@ -47,11 +51,13 @@ impl Default for TranslationConfig {
             max_iterations: 30,
             min_step: 1e-3,
             gradient_threshold: 2.0,
+            max_pixels: 8_000,
             loss: Loss::Huber(1.345),
             min_sigma: 0.5,
             method: TranslationMethod::InverseCompositional,
             affine_brightness: false,
             max_condition: 1e4,
+            presmooth: true,
         }
     }
 }
@@ -104,10 +110,12 @@ pub fn align_translation(
         min_step: cfg.min_step,
         min_relative_decrease: 1e-9,
         gradient_threshold: cfg.gradient_threshold,
+        max_pixels: cfg.max_pixels,
         loss: cfg.loss,
         min_sigma: cfg.min_sigma,
         affine_brightness: cfg.affine_brightness,
         max_condition: cfg.max_condition,
+        presmooth: cfg.presmooth,
     };
     let forward = cfg.method == TranslationMethod::ForwardAdditive;
     let out = align_2d::<4>(

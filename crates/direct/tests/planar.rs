@@ -70,8 +70,9 @@ fn noisy_shift_is_recovered_and_covariance_is_consistent() {
     let fit = align_translation(&n1, &n2, &TranslationConfig::default()).unwrap();
     let e = error(fit.d, -3.3, 4.45);
     assert!(e < NOISY_TOLERANCE, "{:?} error {e}", fit.d);
-    // Residual RMSE is about the noise of the difference of two noisy images (2 * sqrt 2).
-    assert!(fit.rmse > 2.0 && fit.rmse < 4.5, "{}", fit.rmse);
+    // The residual is the difference of two noisy images (sigma 2 sqrt 2) after the sigma-1
+    // binomial presmoothing, which scales white noise by 70/256 = 0.273: about 0.77 grey.
+    assert!(fit.rmse > 0.5 && fit.rmse < 2.0, "{}", fit.rmse);
 }
 
 #[test]
@@ -91,8 +92,10 @@ fn brightness_change_needs_the_affine_brightness_model() {
     .unwrap();
     let e_on = error(on.d, 1.7, 0.8);
     assert!(e_on < NOISELESS_TOLERANCE, "{:?} {e_on}", on.d);
+    // Gain and offset are correlated; the gain and the brightness of mid-grey are checked.
+    let mid_grey_error = (on.a * 128.0 + on.b) - (1.3 * 128.0 - 20.0);
     assert!(
-        (on.a - 1.3).abs() < 0.01 && (on.b + 20.0).abs() < 1.0,
+        (on.a - 1.3).abs() < 0.02 && mid_grey_error.abs() < 1.0,
         "{} {}",
         on.a,
         on.b
