@@ -16,7 +16,7 @@ use nalgebra::Vector2;
 use rayon::prelude::*;
 
 use crate::error::DirectError;
-use crate::plane::{Gradients, Plane, Pyramid};
+use crate::plane::{Plane, Pyramid};
 
 /// Smallest side of a KLT pyramid level, pixels.
 const MIN_LEVEL_SIDE: usize = 8;
@@ -154,13 +154,7 @@ pub fn good_features_to_track(
 fn min_eigenvalue_map(img: &Plane) -> Vec<f32> {
     let (w, h) = img.size();
     let g = img.gradients();
-    let products = |f: &dyn Fn(f32, f32) -> f32| -> Vec<f32> {
-        g.gx.data
-            .iter()
-            .zip(&g.gy.data)
-            .map(|(&a, &b)| f(a, b))
-            .collect()
-    };
+    let (gx, gy) = (&g.gx.data, &g.gy.data);
     let box3 = |src: Vec<f32>| -> Vec<f32> {
         let mut horiz = vec![0f32; w * h];
         for (s, d) in src.chunks_exact(w).zip(horiz.chunks_exact_mut(w)) {
@@ -185,9 +179,9 @@ fn min_eigenvalue_map(img: &Plane) -> Vec<f32> {
         }
         out
     };
-    let sxx = box3(products(&|a, _| a * a));
-    let sxy = box3(products(&|a, b| a * b));
-    let syy = box3(products(&|_, b| b * b));
+    let sxx = box3(gx.iter().map(|a| a * a).collect());
+    let sxy = box3(gx.iter().zip(gy).map(|(a, b)| a * b).collect());
+    let syy = box3(gy.iter().map(|b| b * b).collect());
     sxx.iter()
         .zip(&sxy)
         .zip(&syy)
@@ -198,27 +192,58 @@ fn min_eigenvalue_map(img: &Plane) -> Vec<f32> {
         .collect()
 }
 
-/// An image pyramid with the gradients of every level.
-struct GradPyramid {
+/// An image pyramid whose coarse levels are padded by replicated pixels.
+///
+/// Level `l > 0` is padded by `pads[l]` pixels on each side (level 0 is not, to avoid copying
+/// the largest image), so that windows near the border take the fast sampling path; pixel
+/// `(x, y)` of level `l` is stored at `(x + pads[l], y + pads[l])`.
+struct PaddedPyramid {
     images: Vec<Plane>,
-    grads: Vec<Gradients>,
+    /// Unpadded `(width, height)` of each level.
+    sizes: Vec<(usize, usize)>,
+    pads: Vec<usize>,
 }
 
-impl GradPyramid {
-    /// The pyramid, with gradients only when `with_gradients`.
-    fn new(img: &Plane, levels: usize, with_gradients: bool) -> Self {
-        let images = Pyramid::new(img.clone(), levels, MIN_LEVEL_SIDE).levels;
-        let grads = if with_gradients {
-            images.par_iter().map(Plane::gradients).collect()
-        } else {
-            Vec::new()
-        };
-        Self { images, grads }
+impl PaddedPyramid {
+    fn new(img: &Plane, levels: usize, pad: usize) -> Self {
+        let mut levels = Pyramid::new(img.clone(), levels, MIN_LEVEL_SIDE).levels;
+        let sizes = levels.iter().map(Plane::size).collect();
+        let pads = (0..levels.len())
+            .map(|l| if l == 0 { 0 } else { pad })
+            .collect();
+        for level in levels.iter_mut().skip(1) {
+            *level = padded(level, pad);
+        }
+        Self {
+            images: levels,
+            sizes,
+            pads,
+        }
+    }
+}
+
+/// `img` with `pad` replicated border pixels on every side.
+fn padded(img: &Plane, pad: usize) -> Plane {
+    let (w, h) = img.size();
+    let pw = w + 2 * pad;
+    let mut data = Vec::with_capacity(pw * (h + 2 * pad));
+    for y in 0..h + 2 * pad {
+        let row = img.row(y.saturating_sub(pad).min(h - 1));
+        data.extend(std::iter::repeat(row[0]).take(pad));
+        data.extend_from_slice(row);
+        data.extend(std::iter::repeat(row[w - 1]).take(pad));
+    }
+    Plane {
+        width: pw,
+        height: h + 2 * pad,
+        data,
     }
 }
 
 /// Per-thread buffers of one window.
 struct Scratch {
+    /// The template with a one-pixel ring, `(window + 2)^2`.
+    ring: Vec<f32>,
     template: Vec<f32>,
     tgx: Vec<f32>,
     tgy: Vec<f32>,
@@ -227,7 +252,9 @@ struct Scratch {
 
 impl Scratch {
     fn new(n: usize) -> Self {
+        let side = (n as f64).sqrt() as usize + 2;
         Self {
+            ring: vec![0.0; side * side],
             template: vec![0.0; n],
             tgx: vec![0.0; n],
             tgy: vec![0.0; n],
@@ -252,10 +279,14 @@ fn sample_patch(plane: &Plane, cx: f32, cy: f32, win: usize, out: &mut [f32]) {
         for (j, o) in out.chunks_exact_mut(win).enumerate() {
             let r0 = &plane.row(y0 + j)[x0..x0 + win + 1];
             let r1 = &plane.row(y0 + j + 1)[x0..x0 + win + 1];
-            for (i, v) in o.iter_mut().enumerate() {
-                let top = r0[i] + fx * (r0[i + 1] - r0[i]);
-                let bottom = r1[i] + fx * (r1[i + 1] - r1[i]);
-                *v = top + fy * (bottom - top);
+            let (w0, w1) = ((1.0 - fx) * (1.0 - fy), fx * (1.0 - fy));
+            let (w2, w3) = ((1.0 - fx) * fy, fx * fy);
+            for ((v, (a, b)), (c, d)) in o
+                .iter_mut()
+                .zip(r0.iter().zip(&r0[1..]))
+                .zip(r1.iter().zip(&r1[1..]))
+            {
+                *v = w0 * a + w1 * b + w2 * c + w3 * d;
             }
         }
     } else {
@@ -270,32 +301,109 @@ fn sample_patch(plane: &Plane, cx: f32, cy: f32, win: usize, out: &mut [f32]) {
     }
 }
 
+/// Number of independent partial sums, so that the reductions vectorize.
+const LANES: usize = 8;
+
+/// `sum_i f(a_i, b_i, c_i)` for a 3-component `f`, in [`LANES`] partial sums.
+#[inline]
+fn lane_sums(a: &[f32], b: &[f32], c: &[f32], f: impl Fn(f32, f32, f32) -> [f32; 3]) -> [f32; 3] {
+    let mut acc = [[0f32; LANES]; 3];
+    let chunks = a.len() / LANES * LANES;
+    for ((ca, cb), cc) in a[..chunks]
+        .chunks_exact(LANES)
+        .zip(b[..chunks].chunks_exact(LANES))
+        .zip(c[..chunks].chunks_exact(LANES))
+    {
+        for k in 0..LANES {
+            let v = f(ca[k], cb[k], cc[k]);
+            acc[0][k] += v[0];
+            acc[1][k] += v[1];
+            acc[2][k] += v[2];
+        }
+    }
+    let mut out = acc.map(|lane| lane.iter().sum::<f32>());
+    for i in chunks..a.len() {
+        let v = f(a[i], b[i], c[i]);
+        out[0] += v[0];
+        out[1] += v[1];
+        out[2] += v[2];
+    }
+    out
+}
+
+/// `(sum (j - t) gx, sum (j - t) gy)` in [`LANES`] partial sums.
+#[inline]
+fn lane_sums2(j: &[f32], t: &[f32], gx: &[f32], gy: &[f32]) -> [f32; 2] {
+    let mut bx = [0f32; LANES];
+    let mut by = [0f32; LANES];
+    let chunks = j.len() / LANES * LANES;
+    for (((cj, ct), cx), cy) in j[..chunks]
+        .chunks_exact(LANES)
+        .zip(t[..chunks].chunks_exact(LANES))
+        .zip(gx[..chunks].chunks_exact(LANES))
+        .zip(gy[..chunks].chunks_exact(LANES))
+    {
+        for k in 0..LANES {
+            let e = cj[k] - ct[k];
+            bx[k] += e * cx[k];
+            by[k] += e * cy[k];
+        }
+    }
+    let mut out = [bx.iter().sum::<f32>(), by.iter().sum::<f32>()];
+    for i in chunks..j.len() {
+        let e = j[i] - t[i];
+        out[0] += e * gx[i];
+        out[1] += e * gy[i];
+    }
+    out
+}
+
 /// Tracks `start` from pyramid `from` into pyramid `to`; returns position, status and error.
 fn track_point(
-    from: &GradPyramid,
-    to: &[Plane],
+    from: &PaddedPyramid,
+    to: &PaddedPyramid,
     start: Vector2<f32>,
     cfg: &KltConfig,
     s: &mut Scratch,
 ) -> (Vector2<f32>, TrackStatus, f32) {
     let win = cfg.window;
     let npix = (win * win) as f32;
-    let levels = from.images.len().min(to.len());
+    let levels = from.images.len().min(to.images.len());
     let mut flow = Vector2::<f32>::zeros();
     let mut error = 0.0;
     for level in (0..levels).rev() {
         let scale = 0.5f32.powi(level as i32);
         let p = start * scale;
-        let (img, grad, next) = (&from.images[level], &from.grads[level], &to[level]);
-        sample_patch(img, p.x, p.y, win, &mut s.template);
-        sample_patch(&grad.gx, p.x, p.y, win, &mut s.tgx);
-        sample_patch(&grad.gy, p.x, p.y, win, &mut s.tgy);
-        let (mut gxx, mut gxy, mut gyy) = (0.0f32, 0.0f32, 0.0f32);
-        for (&a, &b) in s.tgx.iter().zip(&s.tgy) {
-            gxx += a * a;
-            gxy += a * b;
-            gyy += b * b;
+        let (img, next) = (&from.images[level], &to.images[level]);
+        let (pad_from, pad) = (from.pads[level] as f32, to.pads[level] as f32);
+        // The template with a one-pixel ring; its central differences are the bilinearly
+        // sampled gradients (both operations are linear and share the bilinear weights).
+        sample_patch(img, p.x + pad_from, p.y + pad_from, win + 2, &mut s.ring);
+        let side = win + 2;
+        for j in 0..win {
+            let (up, mid, down) = (
+                &s.ring[j * side..(j + 1) * side],
+                &s.ring[(j + 1) * side..(j + 2) * side],
+                &s.ring[(j + 2) * side..(j + 3) * side],
+            );
+            let row = j * win..(j + 1) * win;
+            s.template[row.clone()].copy_from_slice(&mid[1..side - 1]);
+            for ((g, a), b) in s.tgx[row.clone()]
+                .iter_mut()
+                .zip(&mid[2..])
+                .zip(&mid[..side - 2])
+            {
+                *g = 0.5 * (a - b);
+            }
+            for ((g, c), d) in s.tgy[row]
+                .iter_mut()
+                .zip(&down[1..side - 1])
+                .zip(&up[1..side - 1])
+            {
+                *g = 0.5 * (c - d);
+            }
         }
+        let [gxx, gxy, gyy] = lane_sums(&s.tgx, &s.tgy, &s.tgy, |a, b, _| [a * a, a * b, b * b]);
         let det = gxx * gyy - gxy * gxy;
         let half = 0.5 * (gxx - gyy);
         let min_eig = 0.5 * (gxx + gyy) - (half * half + gxy * gxy).sqrt();
@@ -304,22 +412,12 @@ fn track_point(
         }
         let mut q = p + flow;
         for _ in 0..cfg.max_iterations {
-            sample_patch(next, q.x, q.y, win, &mut s.target);
-            let (mut bx, mut by) = (0.0f32, 0.0f32);
-            for ((&j, &t), (&a, &b)) in s
-                .target
-                .iter()
-                .zip(&s.template)
-                .zip(s.tgx.iter().zip(&s.tgy))
-            {
-                let e = j - t;
-                bx += e * a;
-                by += e * b;
-            }
+            sample_patch(next, q.x + pad, q.y + pad, win, &mut s.target);
+            let [bx, by] = lane_sums2(&s.target, &s.template, &s.tgx, &s.tgy);
             let dx = -(gyy * bx - gxy * by) / det;
             let dy = -(gxx * by - gxy * bx) / det;
             q += Vector2::new(dx, dy);
-            let (w, h) = next.size();
+            let (w, h) = to.sizes[level];
             if !(q.x >= 0.0 && q.y >= 0.0 && q.x <= (w - 1) as f32 && q.y <= (h - 1) as f32) {
                 return (q / scale, TrackStatus::OutOfBounds, 0.0);
             }
@@ -329,7 +427,7 @@ fn track_point(
         }
         flow = q - p;
         if level == 0 {
-            sample_patch(next, q.x, q.y, win, &mut s.target);
+            sample_patch(next, q.x + pad, q.y + pad, win, &mut s.target);
             error = s
                 .target
                 .iter()
@@ -376,12 +474,11 @@ pub fn track_klt(
             "window must be odd and >= 3, levels and max_iterations positive",
         ));
     }
-    let with_backward = cfg.forward_backward.is_some();
+    let pad = cfg.window / 2 + 2;
     let (from, to) = rayon::join(
-        || GradPyramid::new(prev, cfg.levels, true),
-        || GradPyramid::new(next, cfg.levels, with_backward),
+        || PaddedPyramid::new(prev, cfg.levels, pad),
+        || PaddedPyramid::new(next, cfg.levels, pad),
     );
-    let to_images = &to.images;
     let n = cfg.window * cfg.window;
     Ok(points
         .par_iter()
@@ -395,9 +492,9 @@ pub fn track_klt(
                         error: 0.0,
                     };
                 }
-                let (q, mut status, error) = track_point(&from, to_images, p, cfg, s);
+                let (q, mut status, error) = track_point(&from, &to, p, cfg, s);
                 if let (TrackStatus::Tracked, Some(limit)) = (status, cfg.forward_backward) {
-                    let (back, back_status, _) = track_point(&to, &from.images, q, cfg, s);
+                    let (back, back_status, _) = track_point(&to, &from, q, cfg, s);
                     if back_status != TrackStatus::Tracked || (back - p).norm() > limit {
                         status = TrackStatus::ForwardBackward;
                     }

@@ -225,12 +225,16 @@ where
     F: Fn(usize) -> Option<(SVector<f64, M>, f64)> + Sync,
 {
     let s = f64::from(scale);
-    (0..n)
+    // One accumulator per chunk, filled in place (a fold over single rows would move the
+    // `N x N` accumulator at every row).
+    (0..n.div_ceil(CHUNK))
         .into_par_iter()
-        .with_min_len(CHUNK)
-        .fold(NormalEquations::<M>::new, |mut ne, i| {
-            if let Some((j, r)) = row(i) {
-                ne.add(&j, r, loss.weight(r / s));
+        .map(|c| {
+            let mut ne = NormalEquations::<M>::new();
+            for i in c * CHUNK..((c + 1) * CHUNK).min(n) {
+                if let Some((j, r)) = row(i) {
+                    ne.add(&j, r, loss.weight(r / s));
+                }
             }
             ne
         })

@@ -29,6 +29,8 @@ pub struct Undistorter {
     map_x: Vec<f32>,
     /// Source `v` of every output pixel (row-major).
     map_y: Vec<f32>,
+    /// Bilinear taps of every output pixel: top-left index (`u32::MAX` outside) and fractions.
+    taps: Vec<(u32, f32, f32)>,
 }
 
 impl Undistorter {
@@ -51,11 +53,20 @@ impl Undistorter {
                     *oy = src.y as f32;
                 }
             });
+        let taps = map_x
+            .par_iter()
+            .zip(map_y.par_iter())
+            .map(|(&x, &y)| match Bilinear::new(x, y, width, height) {
+                Some(t) => (t.index as u32, t.fx, t.fy),
+                None => (u32::MAX, 0.0, 0.0),
+            })
+            .collect();
         Ok(Self {
             width,
             height,
             map_x,
             map_y,
+            taps,
         })
     }
 
@@ -73,12 +84,19 @@ impl Undistorter {
     /// The pinhole image of `img` (bilinear, NaN where the source is outside).
     pub fn undistort_image(&self, img: &Plane) -> Result<Plane, DirectError> {
         self.check(img)?;
+        let (w, d) = (img.width, &img.data);
         let data = self
-            .map_x
+            .taps
             .par_iter()
-            .zip(self.map_y.par_iter())
-            .map(|(&x, &y)| {
-                Bilinear::new(x, y, img.width, img.height).map_or(f32::NAN, |t| t.apply(&img.data))
+            .with_min_len(4096)
+            .map(|&(index, fx, fy)| {
+                if index == u32::MAX {
+                    return f32::NAN;
+                }
+                let i = index as usize;
+                let top = d[i] + fx * (d[i + 1] - d[i]);
+                let bottom = d[i + w] + fx * (d[i + w + 1] - d[i + w]);
+                top + fy * (bottom - top)
             })
             .collect();
         Plane::new(self.width, self.height, data)

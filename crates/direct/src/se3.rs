@@ -18,6 +18,8 @@
 //! re-estimated every iteration, normal equations reduced in parallel), coarse to fine, from the
 //! prior pose.
 
+use std::sync::Arc;
+
 use nalgebra::{Isometry3, Matrix6, SVector, Vector3};
 use rayon::prelude::*;
 use vofront_geometry::lie::se3_exp;
@@ -26,7 +28,7 @@ use vofront_robust::{Convergence, Loss, NormalEquations};
 use crate::error::DirectError;
 use crate::lm::{accumulate, covariance, run_level, LevelProblem, LmSettings, CHUNK};
 use crate::plane::{Bilinear, Gradients, Plane, Pyramid};
-use crate::rgbd::RgbdFrame;
+use crate::rgbd::{RgbdFrame, Undistorter};
 
 /// Smallest side of the coarsest pyramid level, pixels.
 const MIN_LEVEL_SIDE: usize = 20;
@@ -126,7 +128,10 @@ struct RefLevel {
 #[derive(Debug, Clone)]
 pub struct Se3Reference {
     levels: Vec<RefLevel>,
-    frame: RgbdFrame,
+    /// Size of the reference image.
+    size: (usize, usize),
+    /// The remap that brings current images to the pinhole geometry.
+    undistorter: Option<Arc<Undistorter>>,
 }
 
 impl Se3Reference {
@@ -167,7 +172,8 @@ impl Se3Reference {
         }
         Ok(Self {
             levels,
-            frame: frame.clone(),
+            size: frame.image.size(),
+            undistorter: frame.undistorter.clone(),
         })
     }
 
@@ -189,7 +195,16 @@ impl Se3Reference {
         if !prior_ok {
             return Err(DirectError::NotFinite);
         }
-        let current = self.frame.prepare_current(current)?;
+        if current.size() != self.size {
+            return Err(DirectError::SizeMismatch {
+                expected: self.size,
+                found: current.size(),
+            });
+        }
+        let current = match &self.undistorter {
+            Some(u) => u.undistort_image(current)?,
+            None => current.clone(),
+        };
         let pyr = Pyramid::new(current, self.levels.len(), MIN_LEVEL_SIDE);
         let mut state = Se3State {
             pose: *prior,
