@@ -27,7 +27,7 @@ use vofront_robust::{Convergence, Loss, NormalEquations};
 
 use crate::error::DirectError;
 use crate::lm::{accumulate, covariance, run_level, LevelProblem, LmSettings, CHUNK};
-use crate::plane::{Bilinear, Gradients, Plane, Pyramid};
+use crate::plane::{Bilinear, Plane, Pyramid};
 use crate::rgbd::{RgbdFrame, Undistorter};
 
 /// Smallest side of the coarsest pyramid level, pixels.
@@ -233,11 +233,11 @@ impl Se3Reference {
                 continue;
             }
             let img = &pyr.levels[level];
-            let grad = img.gradients();
+            let packed = pack(img);
             let mut problem = Se3Level {
                 reference,
-                image: img,
-                grad: &grad,
+                size: img.size(),
+                packed: &packed,
                 residuals: Vec::new(),
                 jacobians: Vec::new(),
             };
@@ -271,6 +271,32 @@ impl Se3Reference {
         }
         unreachable!("the loop returns at level 0")
     }
+}
+
+/// `[I, gx, gy, 0]` per pixel of `img` (central-difference gradients).
+fn pack(img: &Plane) -> Vec<[f32; 4]> {
+    let g = img.gradients();
+    img.data
+        .iter()
+        .zip(&g.gx.data)
+        .zip(&g.gy.data)
+        .map(|((&v, &gx), &gy)| [v, gx, gy, 0.0])
+        .collect()
+}
+
+/// Bilinear interpolation of the three channels of a packed plane.
+#[inline]
+fn sample_packed(packed: &[[f32; 4]], tap: &Bilinear) -> [f32; 3] {
+    let i = tap.index;
+    let (a, b) = (packed[i], packed[i + 1]);
+    let (c, d) = (packed[i + tap.stride], packed[i + tap.stride + 1]);
+    let (fx, fy) = (tap.fx, tap.fy);
+    let (w0, w1, w2, w3) = ((1.0 - fx) * (1.0 - fy), fx * (1.0 - fy), (1.0 - fx) * fy, fx * fy);
+    let mut out = [0f32; 3];
+    for (k, o) in out.iter_mut().enumerate() {
+        *o = w0 * a[k] + w1 * b[k] + w2 * c[k] + w3 * d[k];
+    }
+    out
 }
 
 /// Pixels of one level: per grid cell, the largest gradient with a valid depth.
@@ -335,8 +361,11 @@ struct Se3State {
 /// One level of the SE(3) problem: residuals and Jacobian rows in SoA buffers.
 struct Se3Level<'a> {
     reference: &'a RefLevel,
-    image: &'a Plane,
-    grad: &'a Gradients,
+    /// `(width, height)` of the current level.
+    size: (usize, usize),
+    /// `[I, gx, gy, 0]` of every pixel of the current level (one cache line per bilinear tap
+    /// row instead of three).
+    packed: &'a [[f32; 4]],
     residuals: Vec<f32>,
     jacobians: Vec<[f32; 8]>,
 }
@@ -355,8 +384,8 @@ impl LevelProblem<8> for Se3Level<'_> {
         let (a, b) = (s.a as f32, s.b as f32);
         let r = self.reference;
         let [fx, fy, cx, cy] = r.k;
-        let (w, h) = self.image.size();
-        let (img, gx, gy) = (&self.image.data, &self.grad.gx.data, &self.grad.gy.data);
+        let (w, h) = self.size;
+        let packed = self.packed;
         let n = r.x.len();
         self.residuals.resize(n, f32::NAN);
         self.jacobians.resize(n, [0.0; 8]);
@@ -382,8 +411,7 @@ impl LevelProblem<8> for Se3Level<'_> {
                     let Some(tap) = Bilinear::new(u, v, w, h) else {
                         continue;
                     };
-                    let value = tap.apply(img);
-                    let (dx, dy) = (tap.apply(gx), tap.apply(gy));
+                    let [value, dx, dy] = sample_packed(packed, &tap);
                     let resid = value - a * r.value[i] - b;
                     if !(resid.is_finite() && dx.is_finite() && dy.is_finite()) {
                         continue;
