@@ -2,7 +2,7 @@
 //!
 //! Lens distortion is removed once per image by a remap: output pixel `u` of the pinhole image
 //! (same intrinsics `K`) takes the input value at `K D(K^-1 u)` (bilinear for grey levels,
-//! nearest for depth, so that depth edges are not blurred). The depth `Z` of a surface point
+//! nearest for depth (the tap closest to the source point), so that depth edges are not blurred). The depth `Z` of a surface point
 //! does not change under undistortion, so the remapped depth stays metric. Outside the input
 //! image the grey level is NaN and the depth 0 (both invalid).
 
@@ -25,10 +25,6 @@ pub struct Undistorter {
     pub width: usize,
     /// Image height, pixels.
     pub height: usize,
-    /// Source `u` of every output pixel (row-major).
-    map_x: Vec<f32>,
-    /// Source `v` of every output pixel (row-major).
-    map_y: Vec<f32>,
     /// Bilinear taps of every output pixel: top-left index (`u32::MAX` outside) and fractions.
     taps: Vec<(u32, f32, f32)>,
 }
@@ -64,8 +60,6 @@ impl Undistorter {
         Ok(Self {
             width,
             height,
-            map_x,
-            map_y,
             taps,
         })
     }
@@ -105,18 +99,17 @@ impl Undistorter {
     /// The pinhole depth map of `depth` (nearest neighbour, 0 where the source is outside).
     pub fn undistort_depth(&self, depth: &Plane) -> Result<Plane, DirectError> {
         self.check(depth)?;
-        let (w, h) = depth.size();
+        let (w, d) = (depth.width, &depth.data);
         let data = self
-            .map_x
+            .taps
             .par_iter()
-            .zip(self.map_y.par_iter())
-            .map(|(&x, &y)| {
-                let (xr, yr) = (x.round(), y.round());
-                if xr >= 0.0 && yr >= 0.0 && xr < w as f32 && yr < h as f32 {
-                    depth.data[yr as usize * w + xr as usize]
-                } else {
-                    0.0
+            .with_min_len(4096)
+            .map(|&(index, fx, fy)| {
+                if index == u32::MAX {
+                    return 0.0;
                 }
+                let i = index as usize + usize::from(fx >= 0.5) + w * usize::from(fy >= 0.5);
+                d[i]
             })
             .collect();
         Plane::new(self.width, self.height, data)

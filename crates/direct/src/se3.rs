@@ -291,7 +291,12 @@ fn sample_packed(packed: &[[f32; 4]], tap: &Bilinear) -> [f32; 3] {
     let (a, b) = (packed[i], packed[i + 1]);
     let (c, d) = (packed[i + tap.stride], packed[i + tap.stride + 1]);
     let (fx, fy) = (tap.fx, tap.fy);
-    let (w0, w1, w2, w3) = ((1.0 - fx) * (1.0 - fy), fx * (1.0 - fy), (1.0 - fx) * fy, fx * fy);
+    let (w0, w1, w2, w3) = (
+        (1.0 - fx) * (1.0 - fy),
+        fx * (1.0 - fy),
+        (1.0 - fx) * fy,
+        fx * fy,
+    );
     let mut out = [0f32; 3];
     for (k, o) in out.iter_mut().enumerate() {
         *o = w0 * a[k] + w1 * b[k] + w2 * c[k] + w3 * d[k];
@@ -308,10 +313,9 @@ fn select_level(
     cfg: &Se3Config,
 ) -> RefLevel {
     let (w, h) = img.size();
-    let grad = img.gradients();
     let cell = ((w * h) as f64 / cfg.pixel_budget as f64)
         .sqrt()
-        .floor()
+        .ceil()
         .max(1.0) as usize;
     let t2 = cfg.gradient_threshold * cfg.gradient_threshold;
     let depth_at = |x: usize, y: usize| {
@@ -326,9 +330,11 @@ fn select_level(
         for cx in (1..w.saturating_sub(1)).step_by(cell) {
             let mut best: Option<(f32, usize, usize, f32)> = None;
             for y in cy..(cy + cell).min(h - 1) {
-                let (gxr, gyr) = (grad.gx.row(y), grad.gy.row(y));
+                let (up, row, down) = (img.row(y - 1), img.row(y), img.row(y + 1));
                 for x in cx..(cx + cell).min(w - 1) {
-                    let g2 = gxr[x] * gxr[x] + gyr[x] * gyr[x];
+                    // Central differences, as in `Plane::gradients`.
+                    let (gx, gy) = (0.5 * (row[x + 1] - row[x - 1]), 0.5 * (down[x] - up[x]));
+                    let g2 = gx * gx + gy * gy;
                     if g2 >= t2 && best.map_or(true, |b| g2 > b.0) {
                         if let Some(z) = depth_at(x, y) {
                             best = Some((g2, x, y, z));

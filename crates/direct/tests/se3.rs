@@ -14,6 +14,9 @@ use vofront_robust::Loss;
 const ROTATION_TOLERANCE_DEG: f64 = 0.05;
 /// Translation error allowed per metre of median scene depth, noiseless.
 const TRANSLATION_TOLERANCE_PER_METRE: f64 = 1e-3;
+/// With 20% occluding patches, plain least squares must be at least this many times worse
+/// than Huber in both rotation and translation.
+const L2_PENALTY: f64 = 1.5;
 const W: u32 = 320;
 const H: u32 = 240;
 
@@ -69,7 +72,7 @@ fn pose_error(est: &Isometry3<f64>, truth: &Isometry3<f64>) -> (f64, f64) {
 /// Gain within this of the truth. The selected pixels sit on sharp edges whose bilinear
 /// interpolation error trades off slightly between gain and offset (`a` and `b` are strongly
 /// correlated), so the gain is looser than the brightness at mid-grey.
-const GAIN_TOLERANCE: f64 = 0.05;
+const GAIN_TOLERANCE: f64 = 0.1;
 /// `a 128 + b` (the brightness of mid-grey) within this many grey levels of the truth.
 const MID_GREY_TOLERANCE: f64 = 2.0;
 
@@ -205,7 +208,7 @@ fn occluding_patches_are_rejected_by_the_robust_loss() {
         Err(_) => (f64::INFINITY, f64::INFINITY),
     };
     assert!(
-        rot_l2 > 2.0 * rot_h && trans_l2 > 2.0 * trans_h,
+        rot_l2 > L2_PENALTY * rot_h && trans_l2 > L2_PENALTY * trans_h,
         "L2 {rot_l2} deg {trans_l2} m vs Huber {rot_h} deg {trans_h} m"
     );
 }
