@@ -126,44 +126,27 @@ impl Plane {
         if w == 0 || h == 0 {
             return Plane::filled(w2, h2, 0.0);
         }
-        let clamp_x = |x: isize| x.clamp(0, w as isize - 1) as usize;
-        // Horizontal pass, decimated: `tmp[y][x2]` for every source row.
-        let mut tmp = vec![0f32; w2 * h];
-        for (src, dst) in self.data.chunks_exact(w).zip(tmp.chunks_exact_mut(w2)) {
-            let tap5 =
-                |a: f32, b: f32, c: f32, d: f32, e: f32| (a + e + 4.0 * (b + d) + 6.0 * c) * 0.0625;
-            // Interior outputs (all five taps inside) without clamping.
-            let interior = if w >= 5 { (w - 3) / 2 } else { 0 };
-            for (x2, out) in dst.iter_mut().enumerate().take(interior + 1).skip(1) {
-                let s = &src[2 * x2 - 2..2 * x2 + 3];
-                *out = tap5(s[0], s[1], s[2], s[3], s[4]);
-            }
-            for x2 in (0..w2).filter(|&x2| x2 == 0 || x2 > interior) {
-                let c = 2 * x2 as isize;
-                dst[x2] = tap5(
-                    src[clamp_x(c - 2)],
-                    src[clamp_x(c - 1)],
-                    src[clamp_x(c)],
-                    src[clamp_x(c + 1)],
-                    src[clamp_x(c + 2)],
-                );
-            }
-        }
-        // Vertical pass over whole rows (vectorizes).
-        let clamp_y = |y: isize| y.clamp(0, h as isize - 1) as usize;
         let mut out = vec![0f32; w2 * h2];
+        let mut column = vec![0f32; w];
         for (y2, dst) in out.chunks_exact_mut(w2).enumerate() {
-            let c = 2 * y2 as isize;
-            let r = |k: isize| &tmp[clamp_y(c + k) * w2..(clamp_y(c + k) + 1) * w2];
-            let (a, b, m, d, e) = (r(-2), r(-1), r(0), r(1), r(2));
-            for (i, o) in dst.iter_mut().enumerate() {
-                *o = (a[i] + e[i] + 4.0 * (b[i] + d[i]) + 6.0 * m[i]) * 0.0625;
-            }
+            // Vertical pass over whole rows (vectorizes), then the decimated horizontal pass.
+            self.vertical_tap5(2 * y2, &mut column);
+            horizontal_tap5(&column, dst, 2);
         }
         Plane {
             width: w2,
             height: h2,
             data: out,
+        }
+    }
+
+    /// Row `y` of the vertical `[1 4 6 4 1] / 16` filter (rows replicated at the borders).
+    fn vertical_tap5(&self, y: usize, out: &mut [f32]) {
+        let h = self.height as isize;
+        let row = |k: isize| self.row((y as isize + k).clamp(0, h - 1) as usize);
+        let (a, b, m, d, e) = (row(-2), row(-1), row(0), row(1), row(2));
+        for (i, o) in out.iter_mut().enumerate() {
+            *o = tap5(a[i], b[i], m[i], d[i], e[i]);
         }
     }
 
@@ -174,32 +157,11 @@ impl Plane {
         if w == 0 || h == 0 {
             return self.clone();
         }
-        let tap5 =
-            |a: f32, b: f32, c: f32, d: f32, e: f32| (a + e + 4.0 * (b + d) + 6.0 * c) * 0.0625;
-        let mut tmp = vec![0f32; w * h];
-        for (src, dst) in self.data.chunks_exact(w).zip(tmp.chunks_exact_mut(w)) {
-            if w >= 5 {
-                for (i, o) in dst[2..w - 2].iter_mut().enumerate() {
-                    *o = tap5(src[i], src[i + 1], src[i + 2], src[i + 3], src[i + 4]);
-                }
-            }
-            let cl = |x: isize| src[x.clamp(0, w as isize - 1) as usize];
-            for x in (0..w).filter(|&x| x < 2 || x + 2 >= w) {
-                let c = x as isize;
-                dst[x] = tap5(cl(c - 2), cl(c - 1), cl(c), cl(c + 1), cl(c + 2));
-            }
-        }
         let mut out = vec![0f32; w * h];
-        let row = |y: isize| {
-            let y = y.clamp(0, h as isize - 1) as usize;
-            &tmp[y * w..(y + 1) * w]
-        };
+        let mut column = vec![0f32; w];
         for (y, dst) in out.chunks_exact_mut(w).enumerate() {
-            let c = y as isize;
-            let (a, b, m, d, e) = (row(c - 2), row(c - 1), row(c), row(c + 1), row(c + 2));
-            for (i, o) in dst.iter_mut().enumerate() {
-                *o = tap5(a[i], b[i], m[i], d[i], e[i]);
-            }
+            self.vertical_tap5(y, &mut column);
+            horizontal_tap5(&column, dst, 1);
         }
         Plane {
             width: w,
@@ -240,6 +202,35 @@ impl Plane {
                 data: gy,
             },
         }
+    }
+}
+
+/// The binomial kernel `(a + 4b + 6c + 4d + e) / 16`.
+#[inline]
+fn tap5(a: f32, b: f32, c: f32, d: f32, e: f32) -> f32 {
+    (a + e + 4.0 * (b + d) + 6.0 * c) * 0.0625
+}
+
+/// `dst[x] = tap5` of `src` around `step * x` (borders replicated); `step` 1 or 2.
+fn horizontal_tap5(src: &[f32], dst: &mut [f32], step: usize) {
+    let w = src.len();
+    let at = |x: isize| src[x.clamp(0, w as isize - 1) as usize];
+    // Outputs whose five taps are all inside need no clamping.
+    let first = 2usize.div_ceil(step);
+    let last = if w >= 5 { (w - 3) / step } else { 0 };
+    if step == 1 && w >= 5 {
+        for (o, t) in dst[2..w - 2].iter_mut().zip(src.windows(5)) {
+            *o = tap5(t[0], t[1], t[2], t[3], t[4]);
+        }
+    } else if w >= 5 {
+        for (x, o) in dst.iter_mut().enumerate().take(last + 1).skip(first) {
+            let t = &src[step * x - 2..step * x + 3];
+            *o = tap5(t[0], t[1], t[2], t[3], t[4]);
+        }
+    }
+    for x in (0..dst.len()).filter(|&x| x < first || x > last || w < 5) {
+        let c = (step * x) as isize;
+        dst[x] = tap5(at(c - 2), at(c - 1), at(c), at(c + 1), at(c + 2));
     }
 }
 
@@ -357,6 +348,15 @@ mod tests {
         let d = p.pyr_down();
         assert_eq!(d.size(), (10, 8));
         assert!((d.at(4, 3) - p.at(8, 6)).abs() < 1e-4);
+    }
+
+    #[test]
+    fn blur_keeps_a_ramp_and_sums_to_one() {
+        let p = ramp(12, 9);
+        let b = p.blur();
+        assert!((b.at(5, 4) - p.at(5, 4)).abs() < 1e-4);
+        let c = Plane::filled(7, 6, 3.0).blur();
+        assert!(c.data.iter().all(|v| (v - 3.0).abs() < 1e-6));
     }
 
     #[test]

@@ -51,7 +51,7 @@ impl Default for TranslationConfig {
             max_iterations: 30,
             min_step: 1e-3,
             gradient_threshold: 2.0,
-            max_pixels: 8_000,
+            max_pixels: 20_000,
             loss: Loss::Huber(1.345),
             min_sigma: 0.5,
             method: TranslationMethod::InverseCompositional,

@@ -143,13 +143,34 @@ struct RefPixels {
 impl RefPixels {
     /// Interior pixels of `img` with `gx^2 + gy^2 >= threshold^2`; when more than
     /// `max_pixels` qualify, only those with the largest gradients (about `max_pixels`).
-    fn select(img: &Plane, grad: &Gradients, threshold: f32, max_pixels: usize) -> Self {
+    fn select(img: &Plane, threshold: f32, max_pixels: usize) -> Self {
+        let (w, h) = img.size();
+        // Central differences of the interior, one row at a time (no gradient planes).
+        let for_each_gradient = |f: &mut dyn FnMut(usize, usize, f32, f32)| {
+            let mut gx = vec![0f32; w];
+            let mut gy = vec![0f32; w];
+            for y in 1..h.saturating_sub(1) {
+                let (up, row, down) = (img.row(y - 1), img.row(y), img.row(y + 1));
+                for (((o, a), b), (c, d)) in gx[1..w - 1]
+                    .iter_mut()
+                    .zip(&row[2..])
+                    .zip(&row[..w - 2])
+                    .zip(gy[1..w - 1].iter_mut().zip(down[1..].iter().zip(&up[1..])))
+                {
+                    *o = 0.5 * (a - b);
+                    *c = 0.5 * (d.0 - d.1);
+                }
+                for x in 1..w - 1 {
+                    f(x, y, gx[x], gy[x]);
+                }
+            }
+        };
         let mut threshold = threshold;
         let t2 = threshold * threshold;
         // Count the candidates and keep every 8th one's squared gradient to estimate quantiles.
         let mut count = 0usize;
         let mut sample = Vec::new();
-        for (gx, gy) in grad.gx.data.iter().zip(&grad.gy.data) {
+        for_each_gradient(&mut |_, _, gx, gy| {
             let g2 = gx * gx + gy * gy;
             if g2 >= t2 {
                 if count % 8 == 0 {
@@ -157,28 +178,23 @@ impl RefPixels {
                 }
                 count += 1;
             }
-        }
+        });
         if count > max_pixels && max_pixels > 0 && !sample.is_empty() {
             let k = sample.len() - (max_pixels / 8).clamp(1, sample.len());
             let (_, cut, _) = sample.select_nth_unstable_by(k, f32::total_cmp);
             threshold = threshold.max(cut.sqrt());
         }
         let mut out = RefPixels::default();
-        let (w, h) = img.size();
         let t2 = threshold * threshold;
-        for y in 1..h.saturating_sub(1) {
-            let (row, gxr, gyr) = (img.row(y), grad.gx.row(y), grad.gy.row(y));
-            for x in 1..w - 1 {
-                let (gx, gy) = (gxr[x], gyr[x]);
-                if gx * gx + gy * gy >= t2 {
-                    out.x.push(x as f32);
-                    out.y.push(y as f32);
-                    out.value.push(row[x]);
-                    out.gx.push(gx);
-                    out.gy.push(gy);
-                }
+        for_each_gradient(&mut |x, y, gx, gy| {
+            if gx * gx + gy * gy >= t2 {
+                out.x.push(x as f32);
+                out.y.push(y as f32);
+                out.value.push(img.at(x, y));
+                out.gx.push(gx);
+                out.gy.push(gy);
             }
-        }
+        });
         out
     }
 
@@ -435,8 +451,7 @@ pub(crate) fn align_2d<const M: usize>(
     let mut last = None;
     for level in (0..levels).rev() {
         let (p1, p2) = (&pyr1.levels[level], &pyr2.levels[level]);
-        let reference =
-            RefPixels::select(p1, &p1.gradients(), cfg.gradient_threshold, cfg.max_pixels);
+        let reference = RefPixels::select(p1, cfg.gradient_threshold, cfg.max_pixels);
         if reference.len() < min_pixels {
             if level == 0 {
                 return Err(DirectError::NoTexture {

@@ -16,8 +16,8 @@ use vofront_robust::{Loss, SolveError};
 const NOISELESS_TOLERANCE: f64 = 0.02;
 /// With 2 grey levels of noise, pixels.
 const NOISY_TOLERANCE: f64 = 0.1;
-const W: u32 = 160;
-const H: u32 = 120;
+const W: u32 = 320;
+const H: u32 = 240;
 
 /// A pair `I1`, `I2` with `I2(x + d) = I1(x)`, both blurred with sigma 1 (the texture's hard
 /// shape edges alias otherwise and bias any interpolating method).
@@ -49,7 +49,8 @@ fn noiseless_subpixel_shift_is_recovered_by_both_methods() {
         let e = error(fit.d, 2.37, -1.61);
         assert!(e < NOISELESS_TOLERANCE, "{method:?}: {:?} error {e}", fit.d);
         assert!(fit.converged);
-        assert!(fit.used_fraction > 0.3, "{}", fit.used_fraction);
+        // About `max_pixels` (20000) of the 76800 pixels.
+        assert!(fit.used_fraction > 0.2, "{}", fit.used_fraction);
         assert!(fit.covariance[(0, 0)] > 0.0 && fit.covariance[(0, 0)] < 1e-3);
     }
 }
@@ -168,10 +169,10 @@ fn homography_is_recovered() {
     let mut worst = 0.0f64;
     for (x, y) in [
         (0.0, 0.0),
-        (159.0, 0.0),
-        (0.0, 119.0),
-        (159.0, 119.0),
-        (80.0, 60.0),
+        (319.0, 0.0),
+        (0.0, 239.0),
+        (319.0, 239.0),
+        (160.0, 120.0),
     ] {
         let p = |h: &Matrix3<f64>| {
             let v = h * nalgebra::Vector3::new(x, y, 1.0);
