@@ -1,7 +1,7 @@
 //! Criterion benchmarks at 640x480 on the fixtures:
-//! - `translation_640x480`: [`align_translation`] with the default 4 levels and at most 8000
+//! - `translation_640x480`: [`align_translation`] with the default 4 levels and at most 20000
 //!   pixels per level (inverse compositional and forward additive);
-//! - `se3_640x480`: [`align_se3`] on two box-room renders, 4 levels, 12000-pixel budget
+//! - `se3_640x480`: [`align_se3`] on two box-room renders, 4 levels, 12000-pixel budget (about 8500 selected at the two finest levels)
 //!   per level, affine brightness, Huber (reference preparation included, as for the peer);
 //! - `klt_500`: [`track_klt`] of 500 Shi-Tomasi corners, 21x21 window, 4 levels, without and
 //!   with the forward-backward check.

@@ -144,39 +144,22 @@ impl RefPixels {
     /// Interior pixels of `img` with `gx^2 + gy^2 >= threshold^2`; when more than
     /// `max_pixels` qualify, only those with the largest gradients (about `max_pixels`).
     fn select(img: &Plane, threshold: f32, max_pixels: usize) -> Self {
-        let (w, h) = img.size();
-        // Central differences of the interior, one row at a time (no gradient planes).
-        let for_each_gradient = |f: &mut dyn FnMut(usize, usize, f32, f32)| {
-            let mut gx = vec![0f32; w];
-            let mut gy = vec![0f32; w];
-            for y in 1..h.saturating_sub(1) {
-                let (up, row, down) = (img.row(y - 1), img.row(y), img.row(y + 1));
-                for (((o, a), b), (c, d)) in gx[1..w - 1]
-                    .iter_mut()
-                    .zip(&row[2..])
-                    .zip(&row[..w - 2])
-                    .zip(gy[1..w - 1].iter_mut().zip(down[1..].iter().zip(&up[1..])))
-                {
-                    *o = 0.5 * (a - b);
-                    *c = 0.5 * (d.0 - d.1);
-                }
-                for x in 1..w - 1 {
-                    f(x, y, gx[x], gy[x]);
-                }
-            }
-        };
+        let for_each_gradient =
+            |f: &mut dyn FnMut(&[f32], &[f32], &[f32], usize)| interior_gradient_rows(img, f);
         let mut threshold = threshold;
         let t2 = threshold * threshold;
         // Count the candidates and keep every 8th one's squared gradient to estimate quantiles.
         let mut count = 0usize;
         let mut sample = Vec::new();
-        for_each_gradient(&mut |_, _, gx, gy| {
-            let g2 = gx * gx + gy * gy;
-            if g2 >= t2 {
-                if count % 8 == 0 {
-                    sample.push(g2);
+        for_each_gradient(&mut |gx, gy, _, _| {
+            for (a, b) in gx.iter().zip(gy) {
+                let g2 = a * a + b * b;
+                if g2 >= t2 {
+                    if count % 8 == 0 {
+                        sample.push(g2);
+                    }
+                    count += 1;
                 }
-                count += 1;
             }
         });
         if count > max_pixels && max_pixels > 0 && !sample.is_empty() {
@@ -186,13 +169,15 @@ impl RefPixels {
         }
         let mut out = RefPixels::default();
         let t2 = threshold * threshold;
-        for_each_gradient(&mut |x, y, gx, gy| {
-            if gx * gx + gy * gy >= t2 {
-                out.x.push(x as f32);
-                out.y.push(y as f32);
-                out.value.push(img.at(x, y));
-                out.gx.push(gx);
-                out.gy.push(gy);
+        for_each_gradient(&mut |gx, gy, row, y| {
+            for (x, ((&a, &b), &v)) in gx.iter().zip(gy).zip(row).enumerate() {
+                if a * a + b * b >= t2 {
+                    out.x.push((x + 1) as f32);
+                    out.y.push(y as f32);
+                    out.value.push(v);
+                    out.gx.push(a);
+                    out.gy.push(b);
+                }
             }
         });
         out
@@ -200,6 +185,27 @@ impl RefPixels {
 
     fn len(&self) -> usize {
         self.x.len()
+    }
+}
+
+/// Calls `f(gx, gy, row, y)` for every interior row `y` of `img` with its central-difference
+/// gradients; the slices cover the interior columns (`gx[i]` belongs to pixel `i + 1`).
+fn interior_gradient_rows(img: &Plane, f: &mut dyn FnMut(&[f32], &[f32], &[f32], usize)) {
+    let (w, h) = img.size();
+    if w < 3 || h < 3 {
+        return;
+    }
+    let mut gx = vec![0f32; w];
+    let mut gy = vec![0f32; w];
+    for y in 1..h - 1 {
+        let (up, row, down) = (img.row(y - 1), img.row(y), img.row(y + 1));
+        for ((o, a), b) in gx[1..w - 1].iter_mut().zip(&row[2..]).zip(&row[..w - 2]) {
+            *o = 0.5 * (a - b);
+        }
+        for ((o, a), b) in gy[1..w - 1].iter_mut().zip(&down[1..]).zip(&up[1..]) {
+            *o = 0.5 * (a - b);
+        }
+        f(&gx[1..w - 1], &gy[1..w - 1], &row[1..w - 1], y);
     }
 }
 
