@@ -144,14 +144,12 @@ impl RefPixels {
     /// Interior pixels of `img` with `gx^2 + gy^2 >= threshold^2`; when more than
     /// `max_pixels` qualify, only those with the largest gradients (about `max_pixels`).
     fn select(img: &Plane, threshold: f32, max_pixels: usize) -> Self {
-        let for_each_gradient =
-            |f: &mut dyn FnMut(&[f32], &[f32], &[f32], usize)| interior_gradient_rows(img, f);
         let mut threshold = threshold;
         let t2 = threshold * threshold;
         // Count the candidates and keep every 8th one's squared gradient to estimate quantiles.
         let mut count = 0usize;
         let mut sample = Vec::new();
-        for_each_gradient(&mut |gx, gy, _, _| {
+        interior_gradient_rows(img, |gx, gy, _, _| {
             for (a, b) in gx.iter().zip(gy) {
                 let g2 = a * a + b * b;
                 if g2 >= t2 {
@@ -169,7 +167,7 @@ impl RefPixels {
         }
         let mut out = RefPixels::default();
         let t2 = threshold * threshold;
-        for_each_gradient(&mut |gx, gy, row, y| {
+        interior_gradient_rows(img, |gx, gy, row, y| {
             for (x, ((&a, &b), &v)) in gx.iter().zip(gy).zip(row).enumerate() {
                 if a * a + b * b >= t2 {
                     out.x.push((x + 1) as f32);
@@ -190,7 +188,7 @@ impl RefPixels {
 
 /// Calls `f(gx, gy, row, y)` for every interior row `y` of `img` with its central-difference
 /// gradients; the slices cover the interior columns (`gx[i]` belongs to pixel `i + 1`).
-fn interior_gradient_rows(img: &Plane, f: &mut dyn FnMut(&[f32], &[f32], &[f32], usize)) {
+fn interior_gradient_rows(img: &Plane, mut f: impl FnMut(&[f32], &[f32], &[f32], usize)) {
     let (w, h) = img.size();
     if w < 3 || h < 3 {
         return;
