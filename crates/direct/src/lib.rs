@@ -9,7 +9,7 @@
 //! - [`klt`]: Shi-Tomasi corners and pyramidal Lucas-Kanade tracking.
 //!
 //! Every aligner runs a robust (Huber or Student-t with MAD scale) Levenberg-Marquardt loop
-//! ([`lm`]) whose normal equations are accumulated in parallel with rayon, and returns typed
+//! (module `lm`) whose normal equations are accumulated in parallel with rayon, and returns typed
 //! [`DirectError`]s for bad input (size mismatch, flat images, degenerate geometry).
 #![warn(missing_docs)]
 

@@ -12,7 +12,7 @@
 //! a grad I1(x) dW/d delta (x)` (valid at convergence, where `I2 o W = a I1 + b`), computed once
 //! per level; `d r / d a = -I1(x)`, `d r / d b = -1`. For translation a forward-additive variant
 //! samples `grad I2` at `x + d` instead (exact Jacobian, three samples per pixel). Steps are
-//! damped Gauss-Newton on Huber (by default) IRLS weights, see [`crate::lm`].
+//! damped Gauss-Newton on Huber (by default) IRLS weights (module `lm`).
 //!
 //! Across pyramid levels the warp is rescaled, `H_l = D H_0 D^-1`, `D = diag(2^-l, 2^-l, 1)`.
 
