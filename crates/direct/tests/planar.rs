@@ -3,11 +3,11 @@
 use nalgebra::{Matrix3, Vector2};
 use proptest::prelude::*;
 use vofront_direct::{
-    align_homography, align_translation, DirectError, Plane, TranslationConfig, TranslationMethod,
-    WarpConfig,
+    align_affine, align_homography, align_translation, DirectError, Plane, TranslationConfig,
+    TranslationMethod, WarpConfig,
 };
 use vofront_fixtures::image2d::{
-    add_gaussian_noise, brightness, gaussian_blur, textured_image, translation,
+    add_gaussian_noise, brightness, gaussian_blur, similarity, textured_image, translation,
     warped_textured_image,
 };
 use vofront_robust::{Loss, SolveError};
@@ -165,22 +165,49 @@ fn homography_is_recovered() {
         &cfg,
     )
     .unwrap();
-    // Compare where both homographies send the image corners and center.
-    let mut worst = 0.0f64;
-    for (x, y) in [
-        (0.0, 0.0),
-        (319.0, 0.0),
-        (0.0, 239.0),
-        (319.0, 239.0),
-        (160.0, 120.0),
-    ] {
-        let p = |h: &Matrix3<f64>| {
-            let v = h * nalgebra::Vector3::new(x, y, 1.0);
-            Vector2::new(v.x / v.z, v.y / v.z)
-        };
-        worst = worst.max((p(&fit.h) - p(&h_true)).norm());
-    }
+    let worst = corner_error(&fit.h, &h_true);
     assert!(worst < 0.05, "corner error {worst} px, H = {}", fit.h);
+}
+
+/// Largest distance between where two homographies send the image corners and center, pixels.
+fn corner_error(a: &Matrix3<f64>, b: &Matrix3<f64>) -> f64 {
+    let (w, h) = (f64::from(W - 1), f64::from(H - 1));
+    [(0.0, 0.0), (w, 0.0), (0.0, h), (w, h), (w / 2.0, h / 2.0)]
+        .iter()
+        .map(|&(x, y)| {
+            let p = |m: &Matrix3<f64>| {
+                let v = m * nalgebra::Vector3::new(x, y, 1.0);
+                Vector2::new(v.x / v.z, v.y / v.z)
+            };
+            (p(a) - p(b)).norm()
+        })
+        .fold(0.0, f64::max)
+}
+
+#[test]
+fn affine_warp_with_brightness_change_is_recovered() {
+    let truth = similarity(0.05, 1.03, 160.0, 120.0, 1.6, -2.2);
+    let i1 = gaussian_blur(&textured_image(W, H, 13), 1.0);
+    let i2 = brightness(
+        &gaussian_blur(&warped_textured_image(W, H, 13, &truth), 1.0),
+        1.2,
+        10.0,
+    );
+    let (p1, p2) = (Plane::from_gray_f32(&i1), Plane::from_gray_f32(&i2));
+    let on = WarpConfig {
+        affine_brightness: true,
+        ..WarpConfig::default()
+    };
+    let fit = align_affine(&p1, &p2, &Matrix3::identity(), &on).unwrap();
+    let err = corner_error(&fit.h, &truth);
+    assert!(err < 0.05, "corner error {err} px, H = {}", fit.h);
+    assert!((fit.a - 1.2).abs() < 0.02, "{} {}", fit.a, fit.b);
+    assert_eq!(fit.covariance.shape(), (6, 6));
+    // Without the brightness model the fit is visibly worse or fails.
+    let off = align_affine(&p1, &p2, &Matrix3::identity(), &WarpConfig::default());
+    if let Ok(off) = off {
+        assert!(off.rmse > 3.0 * fit.rmse, "{} vs {}", off.rmse, fit.rmse);
+    }
 }
 
 proptest! {
