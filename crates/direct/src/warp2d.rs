@@ -1,0 +1,585 @@
+//! Coarse-to-fine robust Lucas-Kanade for 2D warps: translation, affine and homography, each
+//! optionally with an affine brightness change.
+//!
+//! Model: a warp `W` maps pixel `x` of image 1 to its position in image 2 and
+//! `I2(W(x)) = a I1(x) + b`. `W` is kept as a 3x3 matrix `H` (`x' ~ H (x, y, 1)`). The residual
+//! of reference pixel `x` is `r = I2(W(x)) - a I1(x) - b`, over the pixels of image 1 whose
+//! gradient magnitude is at least `gradient_threshold` (the others carry no information and
+//! only add noise).
+//!
+//! Update (inverse-compositional style): `H <- H H(delta)` with `H(delta) = I + P(delta)`, whose
+//! Jacobian at `delta = 0` uses the gradient of the *reference*, `d r / d delta =
+//! a grad I1(x) dW/d delta (x)` (valid at convergence, where `I2 o W = a I1 + b`), computed once
+//! per level; `d r / d a = -I1(x)`, `d r / d b = -1`. For translation a forward-additive variant
+//! samples `grad I2` at `x + d` instead (exact Jacobian, three samples per pixel). Steps are
+//! damped Gauss-Newton on Huber (by default) IRLS weights (module `lm`).
+//!
+//! Across pyramid levels the warp is rescaled, `H_l = D H_0 D^-1`, `D = diag(2^-l, 2^-l, 1)`.
+
+use nalgebra::{DMatrix, Matrix3, SMatrix, SVector};
+use rayon::prelude::*;
+use vofront_robust::{Convergence, Loss, NormalEquations};
+
+use crate::error::DirectError;
+use crate::lm::{accumulate, covariance, run_level, LevelProblem, LmSettings, CHUNK};
+use crate::plane::{Bilinear, Gradients, Plane, Pyramid};
+
+/// Smallest side of the coarsest pyramid level, pixels.
+const MIN_LEVEL_SIDE: usize = 16;
+/// Reference pixels needed per parameter for a level to be used.
+const PIXELS_PER_PARAMETER: usize = 8;
+
+/// The family of 2D warps.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum WarpKind {
+    /// `x' = x + d` (2 parameters).
+    Translation,
+    /// `x' = A x + t` (6 parameters).
+    Affine,
+    /// `x' ~ H x` with `H[2][2] = 1` (8 parameters).
+    Homography,
+}
+
+impl WarpKind {
+    /// Number of geometric parameters.
+    pub fn parameters(self) -> usize {
+        match self {
+            WarpKind::Translation => 2,
+            WarpKind::Affine => 6,
+            WarpKind::Homography => 8,
+        }
+    }
+}
+
+/// How the Jacobian of a translation is formed.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum TranslationMethod {
+    /// Reference gradients computed once per level (the faster one, and equally accurate).
+    #[default]
+    InverseCompositional,
+    /// Gradients of image 2 sampled at `x + d` every iteration.
+    ForwardAdditive,
+}
+
+/// Settings shared by every 2D aligner.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct WarpConfig {
+    /// Pyramid levels (fewer when the image is small), at least 1.
+    pub levels: usize,
+    /// Iteration limit per level.
+    pub max_iterations: usize,
+    /// Stop when the step moves any image corner by less than this many pixels.
+    pub min_step: f64,
+    /// Stop when an accepted step lowers the mean robust cost by less than this fraction.
+    pub min_relative_decrease: f64,
+    /// Reference pixels with `|grad I1| <` this (grey levels per pixel) are not used.
+    pub gradient_threshold: f32,
+    /// At most about this many reference pixels per level (the largest gradients are kept).
+    pub max_pixels: usize,
+    /// Robust loss on residuals in sigmas.
+    pub loss: Loss,
+    /// Floor of the robust residual scale, grey levels.
+    pub min_sigma: f32,
+    /// Estimate the brightness change `(a, b)` jointly; otherwise `a = 1`, `b = 0`.
+    pub affine_brightness: bool,
+    /// Largest acceptable Jacobi-scaled condition number of the normal equations.
+    pub max_condition: f64,
+    /// Blur both images with [`Plane::blur`] (sigma 1 pixel) first: the bilinear interpolant
+    /// and the central-difference gradients then agree, which removes a bias of a few
+    /// hundredths of a pixel on sharp real images.
+    pub presmooth: bool,
+}
+
+impl Default for WarpConfig {
+    fn default() -> Self {
+        Self {
+            levels: 4,
+            max_iterations: 50,
+            min_step: 1e-3,
+            min_relative_decrease: 1e-7,
+            gradient_threshold: 2.0,
+            max_pixels: 60_000,
+            loss: Loss::Huber(1.345),
+            min_sigma: 0.5,
+            affine_brightness: false,
+            max_condition: 1e12,
+            presmooth: true,
+        }
+    }
+}
+
+/// Result of [`align_affine`] and [`align_homography`].
+#[derive(Debug, Clone, PartialEq)]
+pub struct WarpResult {
+    /// `H` with `I2(H x) = a I1(x) + b` (pixels of image 1 to pixels of image 2).
+    pub h: Matrix3<f64>,
+    /// Brightness gain.
+    pub a: f64,
+    /// Brightness offset, grey levels.
+    pub b: f64,
+    /// Iterations per pyramid level, index = level (0 = full resolution; 0 for skipped levels).
+    pub iterations: Vec<usize>,
+    /// Root-mean-square residual at full resolution, grey levels.
+    pub rmse: f64,
+    /// Valid residuals at full resolution over the number of pixels.
+    pub used_fraction: f64,
+    /// Covariance of the geometric parameters of the last `H(delta)` (Gauss-Newton
+    /// `sigma^2 H^-1` restricted to them), `k x k` for `k` geometric parameters.
+    pub covariance: DMatrix<f64>,
+    /// False when the full-resolution level hit its iteration limit.
+    pub converged: bool,
+}
+
+/// Reference pixels of one level, structure of arrays.
+#[derive(Debug, Default)]
+struct RefPixels {
+    x: Vec<f32>,
+    y: Vec<f32>,
+    value: Vec<f32>,
+    gx: Vec<f32>,
+    gy: Vec<f32>,
+}
+
+impl RefPixels {
+    /// Interior pixels of `img` with `gx^2 + gy^2 >= threshold^2`; when more than
+    /// `max_pixels` qualify, only those with the largest gradients (about `max_pixels`).
+    fn select(img: &Plane, threshold: f32, max_pixels: usize) -> Self {
+        let mut threshold = threshold;
+        let t2 = threshold * threshold;
+        // Count the candidates and keep every 8th one's squared gradient to estimate quantiles.
+        let mut count = 0usize;
+        let mut sample = Vec::new();
+        interior_gradient_rows(img, |gx, gy, _, _| {
+            for (a, b) in gx.iter().zip(gy) {
+                let g2 = a * a + b * b;
+                if g2 >= t2 {
+                    if count % 8 == 0 {
+                        sample.push(g2);
+                    }
+                    count += 1;
+                }
+            }
+        });
+        if count > max_pixels && max_pixels > 0 && !sample.is_empty() {
+            let k = sample.len() - (max_pixels / 8).clamp(1, sample.len());
+            let (_, cut, _) = sample.select_nth_unstable_by(k, f32::total_cmp);
+            threshold = threshold.max(cut.sqrt());
+        }
+        let mut out = RefPixels::default();
+        let t2 = threshold * threshold;
+        interior_gradient_rows(img, |gx, gy, row, y| {
+            for (x, ((&a, &b), &v)) in gx.iter().zip(gy).zip(row).enumerate() {
+                if a * a + b * b >= t2 {
+                    out.x.push((x + 1) as f32);
+                    out.y.push(y as f32);
+                    out.value.push(v);
+                    out.gx.push(a);
+                    out.gy.push(b);
+                }
+            }
+        });
+        out
+    }
+
+    fn len(&self) -> usize {
+        self.x.len()
+    }
+}
+
+/// Calls `f(gx, gy, row, y)` for every interior row `y` of `img` with its central-difference
+/// gradients; the slices cover the interior columns (`gx[i]` belongs to pixel `i + 1`).
+fn interior_gradient_rows(img: &Plane, mut f: impl FnMut(&[f32], &[f32], &[f32], usize)) {
+    let (w, h) = img.size();
+    if w < 3 || h < 3 {
+        return;
+    }
+    let mut gx = vec![0f32; w];
+    let mut gy = vec![0f32; w];
+    for y in 1..h - 1 {
+        let (up, row, down) = (img.row(y - 1), img.row(y), img.row(y + 1));
+        for ((o, a), b) in gx[1..w - 1].iter_mut().zip(&row[2..]).zip(&row[..w - 2]) {
+            *o = 0.5 * (a - b);
+        }
+        for ((o, a), b) in gy[1..w - 1].iter_mut().zip(&down[1..]).zip(&up[1..]) {
+            *o = 0.5 * (a - b);
+        }
+        f(&gx[1..w - 1], &gy[1..w - 1], &row[1..w - 1], y);
+    }
+}
+
+/// Warp and brightness.
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct State2d {
+    h: Matrix3<f64>,
+    a: f64,
+    b: f64,
+}
+
+/// `I + P(delta)` for the geometric part of `delta`.
+fn increment(kind: WarpKind, d: &[f64]) -> Matrix3<f64> {
+    match kind {
+        WarpKind::Translation => Matrix3::new(1.0, 0.0, d[0], 0.0, 1.0, d[1], 0.0, 0.0, 1.0),
+        WarpKind::Affine => Matrix3::new(
+            1.0 + d[0],
+            d[1],
+            d[2],
+            d[3],
+            1.0 + d[4],
+            d[5],
+            0.0,
+            0.0,
+            1.0,
+        ),
+        WarpKind::Homography => Matrix3::new(
+            1.0 + d[0],
+            d[1],
+            d[2],
+            d[3],
+            1.0 + d[4],
+            d[5],
+            d[6],
+            d[7],
+            1.0,
+        ),
+    }
+}
+
+/// `a grad I dW/d delta` at `(x, y)` for the warp kind, then `-I1` and `-1`.
+#[inline]
+fn jacobian_row<const M: usize>(
+    kind: WarpKind,
+    x: f32,
+    y: f32,
+    gx: f32,
+    gy: f32,
+    value: f32,
+) -> SVector<f64, M> {
+    let (x, y, gx, gy) = (f64::from(x), f64::from(y), f64::from(gx), f64::from(gy));
+    let mut j = SVector::<f64, M>::zeros();
+    match kind {
+        WarpKind::Translation => {
+            j[0] = gx;
+            j[1] = gy;
+        }
+        WarpKind::Affine | WarpKind::Homography => {
+            j[0] = gx * x;
+            j[1] = gx * y;
+            j[2] = gx;
+            j[3] = gy * x;
+            j[4] = gy * y;
+            j[5] = gy;
+            if kind == WarpKind::Homography {
+                let s = gx * x + gy * y;
+                j[6] = -s * x;
+                j[7] = -s * y;
+            }
+        }
+    }
+    j[M - 2] = -f64::from(value);
+    j[M - 1] = -1.0;
+    j
+}
+
+/// One pyramid level of a 2D alignment problem.
+struct Level2d<'a> {
+    kind: WarpKind,
+    reference: &'a RefPixels,
+    target: &'a Plane,
+    /// Gradients of the target, for the forward-additive translation.
+    target_grad: Option<&'a Gradients>,
+    residuals: Vec<f32>,
+    /// Target gradients sampled at the warped pixels (forward-additive only).
+    sampled_gx: Vec<f32>,
+    sampled_gy: Vec<f32>,
+    /// Brightness gain at the last evaluation.
+    gain: f32,
+}
+
+impl<const M: usize> LevelProblem<M> for Level2d<'_> {
+    type State = State2d;
+
+    fn evaluate(&mut self, s: &State2d) -> usize {
+        let h = s.h.cast::<f32>();
+        let (a, b) = (s.a as f32, s.b as f32);
+        self.gain = a;
+        let (w, hgt) = self.target.size();
+        let img = &self.target.data;
+        let r = self.reference;
+        let n = r.len();
+        let warp = move |i: usize| -> Option<Bilinear> {
+            let (x, y) = (r.x[i], r.y[i]);
+            let z = h[(2, 0)] * x + h[(2, 1)] * y + h[(2, 2)];
+            let u = (h[(0, 0)] * x + h[(0, 1)] * y + h[(0, 2)]) / z;
+            let v = (h[(1, 0)] * x + h[(1, 1)] * y + h[(1, 2)]) / z;
+            Bilinear::new(u, v, w, hgt)
+        };
+        self.residuals.resize(n, f32::NAN);
+        match self.target_grad {
+            None => self
+                .residuals
+                .par_chunks_mut(CHUNK)
+                .enumerate()
+                .for_each(|(c, out)| {
+                    for (k, o) in out.iter_mut().enumerate() {
+                        let i = c * CHUNK + k;
+                        *o = warp(i).map_or(f32::NAN, |t| t.apply(img) - a * r.value[i] - b);
+                    }
+                }),
+            Some(grad) => {
+                self.sampled_gx.resize(n, 0.0);
+                self.sampled_gy.resize(n, 0.0);
+                self.residuals
+                    .par_chunks_mut(CHUNK)
+                    .zip(self.sampled_gx.par_chunks_mut(CHUNK))
+                    .zip(self.sampled_gy.par_chunks_mut(CHUNK))
+                    .enumerate()
+                    .for_each(|(c, ((out, ogx), ogy))| {
+                        for k in 0..out.len() {
+                            let i = c * CHUNK + k;
+                            out[k] = match warp(i) {
+                                Some(t) => {
+                                    ogx[k] = t.apply(&grad.gx.data);
+                                    ogy[k] = t.apply(&grad.gy.data);
+                                    t.apply(img) - a * r.value[i] - b
+                                }
+                                None => f32::NAN,
+                            };
+                        }
+                    });
+            }
+        }
+        self.residuals.iter().filter(|v| !v.is_nan()).count()
+    }
+
+    fn residuals(&self) -> &[f32] {
+        &self.residuals
+    }
+
+    fn normal_equations(&self, loss: &Loss, scale: f32) -> NormalEquations<M> {
+        let r = self.reference;
+        let forward = self.target_grad.is_some();
+        accumulate(r.len(), loss, scale, |i| {
+            let res = self.residuals[i];
+            if res.is_nan() {
+                return None;
+            }
+            let (gx, gy) = if forward {
+                (self.sampled_gx[i], self.sampled_gy[i])
+            } else {
+                (self.gain * r.gx[i], self.gain * r.gy[i])
+            };
+            let j = jacobian_row::<M>(self.kind, r.x[i], r.y[i], gx, gy, r.value[i]);
+            Some((j, f64::from(res)))
+        })
+    }
+
+    fn retract(&self, s: &State2d, delta: &SVector<f64, M>) -> State2d {
+        State2d {
+            h: s.h * increment(self.kind, delta.as_slice()),
+            a: s.a + delta[M - 2],
+            b: s.b + delta[M - 1],
+        }
+    }
+}
+
+/// `D H D^-1` with `D = diag(f, f, 1)`: the same warp in coordinates scaled by `f`.
+fn rescale(h: &Matrix3<f64>, f: f64) -> Matrix3<f64> {
+    let d = Matrix3::new(f, 0.0, 0.0, 0.0, f, 0.0, 0.0, 0.0, 1.0);
+    let d_inv = Matrix3::new(1.0 / f, 0.0, 0.0, 0.0, 1.0 / f, 0.0, 0.0, 0.0, 1.0);
+    d * h * d_inv
+}
+
+/// Everything a caller of [`align_2d`] gets back.
+pub(crate) struct Outcome2d {
+    pub h: Matrix3<f64>,
+    pub a: f64,
+    pub b: f64,
+    pub iterations: Vec<usize>,
+    pub rmse: f64,
+    pub used_fraction: f64,
+    pub covariance: DMatrix<f64>,
+    pub converged: bool,
+}
+
+/// Coarse-to-fine robust alignment of `img2` to `img1` for `kind` with `M = k + 2` parameters.
+pub(crate) fn align_2d<const M: usize>(
+    kind: WarpKind,
+    img1: &Plane,
+    img2: &Plane,
+    initial: &Matrix3<f64>,
+    cfg: &WarpConfig,
+    forward_additive: bool,
+) -> Result<Outcome2d, DirectError> {
+    debug_assert_eq!(M, kind.parameters() + 2);
+    img1.check_same_size(img2)?;
+    img1.check_min_size(MIN_LEVEL_SIDE)?;
+    if cfg.levels == 0
+        || cfg.max_iterations == 0
+        || cfg.gradient_threshold.is_nan()
+        || cfg.gradient_threshold < 0.0
+    {
+        return Err(DirectError::InvalidConfig(
+            "levels and max_iterations must be positive, gradient_threshold non-negative",
+        ));
+    }
+    if initial.iter().any(|v| !v.is_finite()) || initial[(2, 2)].abs() < 1e-12 {
+        return Err(DirectError::NotFinite);
+    }
+    if img1.data.iter().chain(&img2.data).any(|v| !v.is_finite()) {
+        return Err(DirectError::NotFinite);
+    }
+    let (base1, base2) = if cfg.presmooth {
+        rayon::join(|| img1.blur(), || img2.blur())
+    } else {
+        (img1.clone(), img2.clone())
+    };
+    let (pyr1, pyr2) = rayon::join(
+        || Pyramid::new(base1, cfg.levels, MIN_LEVEL_SIDE),
+        || Pyramid::new(base2, cfg.levels, MIN_LEVEL_SIDE),
+    );
+    let levels = pyr1.levels.len();
+    let min_pixels = PIXELS_PER_PARAMETER * M;
+    let k = kind.parameters();
+    let mut fixed = [false; M];
+    fixed[M - 2] = !cfg.affine_brightness;
+    fixed[M - 1] = !cfg.affine_brightness;
+
+    let initial = initial / initial[(2, 2)];
+    let top = levels - 1;
+    let mut state = State2d {
+        h: rescale(&initial, 0.5f64.powi(top as i32)),
+        a: 1.0,
+        b: 0.0,
+    };
+    let mut iterations = vec![0; levels];
+    let mut last = None;
+    for level in (0..levels).rev() {
+        let (p1, p2) = (&pyr1.levels[level], &pyr2.levels[level]);
+        let reference = RefPixels::select(p1, cfg.gradient_threshold, cfg.max_pixels);
+        if reference.len() < min_pixels {
+            if level == 0 {
+                return Err(DirectError::NoTexture {
+                    pixels: reference.len(),
+                    required: min_pixels,
+                });
+            }
+            state.h = rescale(&state.h, 2.0);
+            continue;
+        }
+        let target_grad = forward_additive.then(|| p2.gradients());
+        let mut problem = Level2d {
+            kind,
+            reference: &reference,
+            target: p2,
+            target_grad: target_grad.as_ref(),
+            residuals: Vec::new(),
+            sampled_gx: Vec::new(),
+            sampled_gy: Vec::new(),
+            gain: 1.0,
+        };
+        let radius = p1.width.max(p1.height) as f64 / 2.0;
+        let mut step_weights = SVector::<f64, M>::repeat(1.0);
+        if kind != WarpKind::Translation {
+            for i in [0, 1, 3, 4] {
+                step_weights[i] = radius;
+            }
+        }
+        if kind == WarpKind::Homography {
+            step_weights[6] = radius * radius;
+            step_weights[7] = radius * radius;
+        }
+        step_weights[M - 2] = 0.0;
+        step_weights[M - 1] = 0.0;
+        let settings = LmSettings {
+            loss: cfg.loss,
+            min_sigma: cfg.min_sigma,
+            max_iterations: cfg.max_iterations,
+            min_step: cfg.min_step,
+            step_weights,
+            min_relative_decrease: cfg.min_relative_decrease,
+            max_condition: cfg.max_condition,
+            fixed,
+            min_valid: min_pixels,
+        };
+        let out = run_level(&mut problem, state, &settings)?;
+        iterations[level] = out.iterations;
+        state = out.state;
+        if level > 0 {
+            state.h = rescale(&state.h, 2.0);
+        } else {
+            let res = LevelProblem::<M>::residuals(&problem);
+            let sum_sq: f64 = res
+                .iter()
+                .filter(|r| !r.is_nan())
+                .map(|&r| f64::from(r) * f64::from(r))
+                .sum();
+            let rmse = (sum_sq / out.valid.max(1) as f64).sqrt();
+            last = Some((out, rmse));
+        }
+    }
+    let (out, rmse) = last.expect("level 0 is always run or returns an error");
+    let cov: SMatrix<f64, M, M> = covariance(&out.hessian, out.weighted_cost, out.valid);
+    Ok(Outcome2d {
+        h: state.h / state.h[(2, 2)],
+        a: state.a,
+        b: state.b,
+        iterations,
+        rmse,
+        used_fraction: out.valid as f64 / (img1.width * img1.height) as f64,
+        covariance: DMatrix::from_fn(k, k, |r, c| cov[(r, c)]),
+        converged: out.reason != Convergence::MaxIterations,
+    })
+}
+
+/// Affine warp `I2(A x + t) = a I1(x) + b` from the initial guess `initial` (the identity when
+/// unknown; its last row must be `0 0 1`).
+///
+/// ```
+/// use nalgebra::Matrix3;
+/// use vofront_direct::{align_affine, Plane, WarpConfig};
+/// let img = |dx: f32| {
+///     let data = (0..64 * 64)
+///         .map(|i| {
+///             let (x, y) = ((i % 64) as f32 - dx, (i / 64) as f32);
+///             100.0 + 40.0 * (x * 0.3).sin() * (y * 0.25).cos() + 30.0 * ((x + y) * 0.17).sin()
+///         })
+///         .collect();
+///     Plane::new(64, 64, data).unwrap()
+/// };
+/// let fit = align_affine(&img(0.0), &img(0.7), &Matrix3::identity(), &WarpConfig::default()).unwrap();
+/// assert!((fit.h[(0, 2)] - 0.7).abs() < 0.05);
+/// ```
+pub fn align_affine(
+    img1: &Plane,
+    img2: &Plane,
+    initial: &Matrix3<f64>,
+    cfg: &WarpConfig,
+) -> Result<WarpResult, DirectError> {
+    let out = align_2d::<8>(WarpKind::Affine, img1, img2, initial, cfg, false)?;
+    Ok(into_result(out))
+}
+
+/// Homography `I2(H x) = a I1(x) + b` from the initial guess `initial` (the identity when
+/// unknown); `H` is returned with `H[2][2] = 1`.
+pub fn align_homography(
+    img1: &Plane,
+    img2: &Plane,
+    initial: &Matrix3<f64>,
+    cfg: &WarpConfig,
+) -> Result<WarpResult, DirectError> {
+    let out = align_2d::<10>(WarpKind::Homography, img1, img2, initial, cfg, false)?;
+    Ok(into_result(out))
+}
+
+fn into_result(out: Outcome2d) -> WarpResult {
+    WarpResult {
+        h: out.h,
+        a: out.a,
+        b: out.b,
+        iterations: out.iterations,
+        rmse: out.rmse,
+        used_fraction: out.used_fraction,
+        covariance: out.covariance,
+        converged: out.converged,
+    }
+}

@@ -1,0 +1,266 @@
+//! SE(3) direct alignment on rendered RGB-D views of the fixtures' box room.
+
+use nalgebra::Isometry3;
+use vofront_direct::{
+    align_se3, photometric_residual_map, DirectError, Plane, RgbdFrame, Se3Config,
+};
+use vofront_fixtures::image2d::{brightness, occlude_patches};
+use vofront_fixtures::scene::{default_camera, distorted_camera, pose_wc, Rendered, Scene};
+use vofront_geometry::camera::{Camera, Pinhole};
+use vofront_geometry::lie::rotation_angle_deg;
+use vofront_robust::Loss;
+
+/// Rotation error allowed on noiseless renders, degrees (the brief's requirement).
+const ROTATION_TOLERANCE_DEG: f64 = 0.05;
+/// Translation error allowed per metre of median scene depth, noiseless.
+const TRANSLATION_TOLERANCE_PER_METRE: f64 = 1e-3;
+/// With 20% occluding patches, plain least squares must be at least this many times worse
+/// than Huber in both rotation and translation.
+const L2_PENALTY: f64 = 1.5;
+const W: u32 = 320;
+const H: u32 = 240;
+
+/// A camera with the default field of view at half resolution (faster renders).
+fn half_camera(full: Camera) -> Camera {
+    let p = full.pinhole;
+    Camera::new(
+        Pinhole::new(
+            p.fx / 2.0,
+            p.fy / 2.0,
+            (p.cx - 0.5) / 2.0,
+            (p.cy - 0.5) / 2.0,
+        )
+        .unwrap(),
+        full.distortion,
+    )
+}
+
+struct Pair {
+    camera: Camera,
+    first: Rendered,
+    second: Rendered,
+    /// `T_21`: points of view 1 into view 2.
+    truth: Isometry3<f64>,
+}
+
+fn pair(camera: Camera) -> Pair {
+    let room = Scene::box_room(5);
+    let t_w1 = pose_wc([0.0, 0.0, 0.0], 0.0, 0.0, 0.0);
+    let t_w2 = pose_wc([0.04, -0.025, 0.06], 0.025, -0.015, 0.01);
+    Pair {
+        camera,
+        first: room.render(&camera, W, H, &t_w1),
+        second: room.render(&camera, W, H, &t_w2),
+        truth: t_w2.inverse() * t_w1,
+    }
+}
+
+fn median_depth(r: &Rendered) -> f64 {
+    let mut d: Vec<f32> = r.depth.iter().copied().filter(|z| *z > 0.0).collect();
+    d.sort_by(f32::total_cmp);
+    f64::from(d[d.len() / 2])
+}
+
+/// (rotation error in degrees, translation error in metres).
+fn pose_error(est: &Isometry3<f64>, truth: &Isometry3<f64>) -> (f64, f64) {
+    (
+        rotation_angle_deg(&est.rotation, &truth.rotation),
+        (est.translation.vector - truth.translation.vector).norm(),
+    )
+}
+
+/// Gain within this of the truth. The selected pixels sit on sharp edges whose bilinear
+/// interpolation error trades off slightly between gain and offset (`a` and `b` are strongly
+/// correlated), so the gain is looser than the brightness at mid-grey.
+const GAIN_TOLERANCE: f64 = 0.1;
+/// `a 128 + b` (the brightness of mid-grey) within this many grey levels of the truth.
+const MID_GREY_TOLERANCE: f64 = 2.0;
+
+fn assert_brightness(a: f64, b: f64, a_true: f64, b_true: f64) {
+    let mid = (a * 128.0 + b) - (a_true * 128.0 + b_true);
+    assert!(
+        (a - a_true).abs() < GAIN_TOLERANCE && mid.abs() < MID_GREY_TOLERANCE,
+        "a {a} b {b}, truth {a_true} {b_true}"
+    );
+}
+
+fn frame(p: &Pair) -> RgbdFrame {
+    RgbdFrame::new(
+        Plane::from_gray_f32(&p.first.image),
+        Plane::from_gray_f32(&p.first.depth),
+        &p.camera,
+    )
+    .unwrap()
+}
+
+fn assert_accurate(est: &Isometry3<f64>, p: &Pair, what: &str) {
+    let (rot, trans) = pose_error(est, &p.truth);
+    let limit = TRANSLATION_TOLERANCE_PER_METRE * median_depth(&p.first);
+    assert!(
+        rot < ROTATION_TOLERANCE_DEG && trans < limit,
+        "{what}: rotation error {rot} deg, translation error {trans} m (limit {limit})"
+    );
+}
+
+#[test]
+fn noiseless_motion_is_recovered_with_covariance_and_full_inliers() {
+    let p = pair(half_camera(default_camera()));
+    let fit = align_se3(
+        &frame(&p),
+        &Plane::from_gray_f32(&p.second.image),
+        &Isometry3::identity(),
+        &Se3Config::default(),
+    )
+    .unwrap();
+    assert_accurate(&fit.pose, &p, "noiseless");
+    assert!(fit.inlier_ratio > 0.7, "{}", fit.inlier_ratio);
+    assert!(fit.valid_pixels > 1000, "{}", fit.valid_pixels);
+    assert_brightness(fit.a, fit.b, 1.0, 0.0);
+    let c = fit.covariance;
+    assert!((0..6).all(|i| c[(i, i)] > 0.0 && c[(i, i)] < 1e-4), "{c}");
+    // The residual map at the truth is small almost everywhere.
+    let map = photometric_residual_map(
+        &frame(&p),
+        &Plane::from_gray_f32(&p.second.image),
+        &p.truth,
+        1.0,
+        0.0,
+    )
+    .unwrap();
+    let mut valid: Vec<f32> = map.data.iter().copied().filter(|v| v.is_finite()).collect();
+    valid.sort_by(f32::total_cmp);
+    let median = valid[valid.len() / 2];
+    assert!(
+        valid.len() > (W * H) as usize / 2 && median < 2.0,
+        "{median}"
+    );
+    // And large at a wrong pose.
+    let wrong = photometric_residual_map(
+        &frame(&p),
+        &Plane::from_gray_f32(&p.second.image),
+        &Isometry3::identity(),
+        1.0,
+        0.0,
+    )
+    .unwrap();
+    let mut bad: Vec<f32> = wrong
+        .data
+        .iter()
+        .copied()
+        .filter(|v| v.is_finite())
+        .collect();
+    bad.sort_by(f32::total_cmp);
+    assert!(
+        bad[bad.len() / 2] > 3.0 * median.max(0.5),
+        "{}",
+        bad[bad.len() / 2]
+    );
+}
+
+#[test]
+fn distorted_camera_is_handled_by_undistortion() {
+    let p = pair(half_camera(distorted_camera()));
+    let fit = align_se3(
+        &frame(&p),
+        &Plane::from_gray_f32(&p.second.image),
+        &Isometry3::identity(),
+        &Se3Config::default(),
+    )
+    .unwrap();
+    assert_accurate(&fit.pose, &p, "distorted");
+}
+
+#[test]
+fn brightness_change_is_estimated() {
+    let p = pair(half_camera(default_camera()));
+    let current = Plane::from_gray_f32(&brightness(&p.second.image, 1.3, -20.0));
+    let fit = align_se3(
+        &frame(&p),
+        &current,
+        &Isometry3::identity(),
+        &Se3Config::default(),
+    )
+    .unwrap();
+    assert_accurate(&fit.pose, &p, "brightness");
+    assert_brightness(fit.a, fit.b, 1.3, -20.0);
+}
+
+#[test]
+fn occluding_patches_are_rejected_by_the_robust_loss() {
+    let p = pair(half_camera(default_camera()));
+    let (occluded, _) = occlude_patches(&p.second.image, 0.2, 3);
+    let current = Plane::from_gray_f32(&occluded);
+    let run = |loss| {
+        let cfg = Se3Config {
+            loss,
+            ..Se3Config::default()
+        };
+        align_se3(&frame(&p), &current, &Isometry3::identity(), &cfg)
+    };
+    let huber = run(Loss::Huber(1.345)).unwrap();
+    let student = run(Loss::StudentT(5.0)).unwrap();
+    assert_accurate(&huber.pose, &p, "Huber");
+    assert_accurate(&student.pose, &p, "Student-t");
+    assert!(huber.inlier_ratio < 0.95, "{}", huber.inlier_ratio);
+    let (rot_h, trans_h) = pose_error(&huber.pose, &p.truth);
+    let (rot_l2, trans_l2) = match run(Loss::Squared) {
+        Ok(l2) => pose_error(&l2.pose, &p.truth),
+        Err(_) => (f64::INFINITY, f64::INFINITY),
+    };
+    assert!(
+        rot_l2 > L2_PENALTY * rot_h && trans_l2 > L2_PENALTY * trans_h,
+        "L2 {rot_l2} deg {trans_l2} m vs Huber {rot_h} deg {trans_h} m"
+    );
+}
+
+#[test]
+fn missing_depth_pixels_are_skipped() {
+    let p = pair(half_camera(default_camera()));
+    let mut depth = Plane::from_gray_f32(&p.first.depth);
+    for (i, z) in depth.data.iter_mut().enumerate() {
+        if i % 7 == 0 {
+            *z = f32::NAN;
+        } else if i % 5 == 0 {
+            *z = 0.0;
+        }
+    }
+    let reference = RgbdFrame::new(Plane::from_gray_f32(&p.first.image), depth, &p.camera).unwrap();
+    let fit = align_se3(
+        &reference,
+        &Plane::from_gray_f32(&p.second.image),
+        &Isometry3::identity(),
+        &Se3Config::default(),
+    )
+    .unwrap();
+    assert_accurate(&fit.pose, &p, "holes in depth");
+}
+
+#[test]
+fn bad_inputs_are_typed_errors() {
+    let cam = half_camera(default_camera());
+    let img = Plane::filled(64, 48, 100.0);
+    let depth = Plane::filled(64, 48, 2.0);
+    assert!(matches!(
+        RgbdFrame::new(img.clone(), Plane::filled(48, 64, 2.0), &cam),
+        Err(DirectError::SizeMismatch { .. })
+    ));
+    assert!(matches!(
+        RgbdFrame::new(img.clone(), Plane::filled(64, 48, 0.0), &cam),
+        Err(DirectError::NoValidDepth)
+    ));
+    let flat = RgbdFrame::new(img.clone(), depth, &cam).unwrap();
+    assert!(matches!(
+        align_se3(&flat, &img, &Isometry3::identity(), &Se3Config::default()),
+        Err(DirectError::NoTexture { .. })
+    ));
+    let p = pair(cam);
+    assert!(matches!(
+        align_se3(
+            &frame(&p),
+            &img,
+            &Isometry3::identity(),
+            &Se3Config::default()
+        ),
+        Err(DirectError::SizeMismatch { .. })
+    ));
+}
