@@ -1,13 +1,24 @@
 //! Two-view and pose geometry for vofront.
 //!
 //! - [`lie`]: SO(3) / SE(3) exp, log and Jacobians used by every vofront crate;
-//! - [`camera`]: pinhole intrinsics with radial-tangential distortion.
+//! - [`camera`]: pinhole intrinsics with radial-tangential distortion, [`undistort_map`];
+//! - [`essential`]: five-point and eight-point solvers, Sampson error, pose recovery;
+//! - [`homography`]: four-point DLT and decomposition into `(R, t, n)`;
+//! - [`ransac`]: LO-MSAC driver generic over an [`ransac::Estimator`];
+//! - [`relative_pose`]: the full two-view pipeline [`estimate_relative_pose`];
+//! - [`triangulate`]: DLT and midpoint triangulation;
+//! - [`pnp`]: P3P in RANSAC with robust motion-only refinement, [`solve_pnp_ransac`].
 //!
 //! Pose convention everywhere: `T_21: Isometry3<f64>` maps points of frame 1 into frame 2,
 //! `x2 = R x1 + t`.
 #![warn(missing_docs)]
 
 pub mod camera;
+pub mod error;
+pub mod essential;
 pub mod lie;
+pub mod ransac;
+pub mod triangulate;
 
 pub use camera::{Camera, CameraError, Distortion, Pinhole};
+pub use error::GeometryError;
