@@ -16,9 +16,12 @@
 pub mod camera;
 pub mod error;
 pub mod essential;
+pub mod homography;
 pub mod lie;
 pub mod ransac;
+pub mod relative_pose;
 pub mod triangulate;
 
 pub use camera::{Camera, CameraError, Distortion, Pinhole};
 pub use error::GeometryError;
+pub use relative_pose::{estimate_relative_pose, Model, RelativePose, RelativePoseConfig};

@@ -50,6 +50,8 @@ pub struct PoseRecovery {
     pub good: usize,
     /// Good points of the runner-up candidate (ambiguity check).
     pub second_good: usize,
+    /// The runner-up candidate pose (the other solution of a planar scene).
+    pub runner_up: Option<Isometry3<f64>>,
     /// Median parallax angle (degrees) of the good points, 0 when there are none.
     pub median_parallax_deg: f64,
 }
@@ -96,9 +98,19 @@ pub fn select_by_chirality(
         .enumerate()
         .map(|(k, p)| (count_in_front(p, x1, x2, used, cfg.far_distance), k))
         .collect();
-    counts.sort_by_key(|c| std::cmp::Reverse(c.0));
+    // Most points in front first; equal counts (the two-fold ambiguity of a plane) prefer the
+    // smaller rotation, the usual case between nearby video frames.
+    counts.sort_by(|a, b| {
+        b.0.cmp(&a.0).then(
+            poses[a.1]
+                .rotation
+                .angle()
+                .total_cmp(&poses[b.1].rotation.angle()),
+        )
+    });
     let &(_, best) = counts.first()?;
     let second_good = counts.get(1).map_or(0, |c| c.0);
+    let runner_up = counts.get(1).map(|c| poses[c.1]);
     let pose = poses[best];
     let mut parallax = Vec::with_capacity(x1.len());
     let points: Vec<Option<Point3<f64>>> = x1
@@ -126,6 +138,7 @@ pub fn select_by_chirality(
         points,
         good,
         second_good,
+        runner_up,
         median_parallax_deg,
     })
 }

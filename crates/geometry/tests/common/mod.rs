@@ -47,15 +47,29 @@ pub fn random_pose(rng: &mut StdRng, max_angle: f64, baseline: f64) -> Isometry3
 /// pixel noise `sigma`; `planar` puts the points on a plane.
 pub fn make_scene(seed: u64, n: usize, outlier_ratio: f64, sigma: f64, planar: bool) -> Scene {
     let mut rng = StdRng::seed_from_u64(seed);
-    let cam = camera();
     let baseline = rng.random_range(0.2..0.6);
     let pose = random_pose(&mut rng, 0.3, baseline);
+    make_scene_with_pose(seed, pose, n, outlier_ratio, sigma, planar)
+}
+
+/// As [`make_scene`] with a given `T_21`.
+pub fn make_scene_with_pose(
+    seed: u64,
+    pose: Isometry3<f64>,
+    n: usize,
+    outlier_ratio: f64,
+    sigma: f64,
+    planar: bool,
+) -> Scene {
+    let mut rng = StdRng::seed_from_u64(seed ^ 0x5eed);
+    let cam = camera();
     let (mut points, mut u1, mut u2, mut is_inlier) = (vec![], vec![], vec![], vec![]);
     while u1.len() < n {
         let x = rng.random_range(-0.6..0.6);
         let y = rng.random_range(-0.45..0.45);
         let z = if planar {
-            4.0 + 0.5 * x - 0.3 * y
+            // The plane 0.2 X - 0.1 Y + Z = 4 along the ray (x, y, 1).
+            4.0 / (1.0 + 0.2 * x - 0.1 * y)
         } else {
             rng.random_range(2.0..8.0)
         };

@@ -1,0 +1,153 @@
+//! The full two-view pipeline on random noisy scenes with outliers.
+
+mod common;
+
+use nalgebra::{Isometry3, Translation3, UnitQuaternion, Vector2, Vector3};
+use proptest::prelude::*;
+use vofront_geometry::lie::direction_angle_deg;
+use vofront_geometry::relative_pose::{estimate_relative_pose, Model, RelativePoseConfig};
+use vofront_geometry::{Camera, CameraError, GeometryError, Pinhole};
+
+/// Pixel noise of the scenes (sigma, pixels).
+const NOISE_PX: f64 = 0.5;
+/// Rotation error bound for 200 correspondences at 0.5 px noise, up to 50% outliers and
+/// 100-200 inliers: about ten times the Cramer-Rao-like spread seen over many seeds (0.02-0.4
+/// degrees), the rotation being partly confounded with the translation in a 63-degree view.
+const ROT_BOUND_DEG: f64 = 0.75;
+/// Translation direction bound (same scenes; baselines 0.2-0.6 for depths 2-8).
+const DIR_BOUND_DEG: f64 = 5.0;
+/// Median relative error of the triangulated points (baseline scale from the truth): depth
+/// errors grow as noise over parallax, a few percent at the median parallax of 2-5 degrees.
+const POINT_MEDIAN_REL_ERR: f64 = 0.1;
+
+proptest! {
+    #![proptest_config(ProptestConfig::with_cases(48))]
+
+    #[test]
+    fn general_scene_with_outliers_gives_accurate_pose(seed in 0u64..1_000_000, outliers in 0.0f64..0.5) {
+        let scene = common::make_scene(seed, 200, outliers, NOISE_PX, false);
+        let rel = estimate_relative_pose(&scene.u1, &scene.u2, &common::camera(), &RelativePoseConfig::default()).unwrap();
+        prop_assert_eq!(rel.model, Model::Essential);
+        prop_assert!(!rel.low_parallax);
+        prop_assert!(rel.rotation.angle_to(&scene.pose.rotation).to_degrees() < ROT_BOUND_DEG);
+        prop_assert!(direction_angle_deg(&rel.translation, &scene.pose.translation.vector) < DIR_BOUND_DEG);
+        // Inliers: nearly all true inliers, hardly any outlier.
+        let true_in = scene.is_inlier.iter().filter(|&&b| b).count();
+        let hit = rel.inliers.iter().zip(&scene.is_inlier).filter(|(a, b)| **a && **b).count();
+        let false_in = rel.inliers.iter().zip(&scene.is_inlier).filter(|(a, b)| **a && !**b).count();
+        prop_assert!(hit as f64 >= 0.8 * true_in as f64, "{} of {}", hit, true_in);
+        prop_assert!(false_in as f64 <= 0.05 * scene.u1.len() as f64);
+        // Triangulated inliers are the true points up to the baseline scale.
+        let scale = scene.pose.translation.vector.norm();
+        let mut rel_err: Vec<f64> = rel.points.iter().zip(&scene.points).filter_map(|(p, q)| {
+            p.map(|p| (p.coords * scale - q.coords).norm() / q.coords.norm())
+        }).collect();
+        rel_err.sort_by(f64::total_cmp);
+        prop_assert!(rel_err[rel_err.len() / 2] < POINT_MEDIAN_REL_ERR, "{}", rel_err[rel_err.len() / 2]);
+        prop_assert!(rel.triangulated as f64 >= 0.8 * rel.inlier_count as f64);
+    }
+}
+
+#[test]
+fn same_seed_gives_same_result() {
+    let scene = common::make_scene(7, 200, 0.4, NOISE_PX, false);
+    let cfg = RelativePoseConfig::default();
+    let a = estimate_relative_pose(&scene.u1, &scene.u2, &common::camera(), &cfg).unwrap();
+    let b = estimate_relative_pose(&scene.u1, &scene.u2, &common::camera(), &cfg).unwrap();
+    assert_eq!(a, b);
+}
+
+/// Planar scenes: the homography must be chosen and the truth be the pose or, for the
+/// two-fold planar ambiguity, its alternative. Statistical floor over fixed seeds: the model
+/// selection ratio of ORB-SLAM sits near 0.5 on planes, so a few scenes can fall to the
+/// essential side (whose planar solution is unstable).
+#[test]
+fn planar_scenes_use_the_homography() {
+    const SCENES: u64 = 32;
+    const MIN_SUCCESS: usize = 26;
+    const ROT_DEG: f64 = 1.5;
+    let mut ok = 0;
+    for seed in 0..SCENES {
+        let scene = common::make_scene(1000 + seed, 200, 0.3, NOISE_PX, true);
+        let rel = estimate_relative_pose(
+            &scene.u1,
+            &scene.u2,
+            &common::camera(),
+            &RelativePoseConfig::default(),
+        )
+        .unwrap();
+        let err = |p: &Isometry3<f64>| p.rotation.angle_to(&scene.pose.rotation).to_degrees();
+        let best = rel
+            .alternative
+            .iter()
+            .map(err)
+            .fold(err(&rel.pose), f64::min);
+        if rel.model == Model::Homography && best < ROT_DEG {
+            ok += 1;
+        }
+    }
+    assert!(ok >= MIN_SUCCESS, "{ok} of {SCENES}");
+}
+
+#[test]
+fn pure_rotation_is_flagged_and_rotation_recovered() {
+    for seed in 0..8 {
+        let r = UnitQuaternion::from_scaled_axis(Vector3::new(0.03, -0.08, 0.02 * seed as f64));
+        let pose = Isometry3::from_parts(Translation3::identity(), r);
+        let scene = common::make_scene_with_pose(seed, pose, 200, 0.3, NOISE_PX, false);
+        let rel = estimate_relative_pose(
+            &scene.u1,
+            &scene.u2,
+            &common::camera(),
+            &RelativePoseConfig::default(),
+        )
+        .unwrap();
+        assert!(rel.low_parallax);
+        assert_eq!(rel.translation, Vector3::zeros());
+        assert!(
+            rel.rotation.angle_to(&r).to_degrees() < 0.2,
+            "{}",
+            rel.rotation.angle_to(&r).to_degrees()
+        );
+    }
+}
+
+#[test]
+fn bad_input_gives_typed_errors() {
+    let cam = common::camera();
+    let cfg = RelativePoseConfig::default();
+    let p = vec![Vector2::new(100.0, 100.0); 4];
+    assert_eq!(
+        estimate_relative_pose(&p, &p, &cam, &cfg),
+        Err(GeometryError::TooFewCorrespondences { got: 4, need: 5 })
+    );
+    let scene = common::make_scene(3, 50, 0.0, 0.5, false);
+    let mut nan = scene.u1.clone();
+    nan[7].x = f64::NAN;
+    assert_eq!(
+        estimate_relative_pose(&nan, &scene.u2, &cam, &cfg),
+        Err(GeometryError::NonFinite)
+    );
+    let same = vec![Vector2::new(100.0, 100.0); 50];
+    assert!(matches!(
+        estimate_relative_pose(&same, &scene.u2, &cam, &cfg),
+        Err(GeometryError::Degenerate(_))
+    ));
+    assert!(matches!(
+        estimate_relative_pose(&scene.u1, &scene.u2[..49], &cam, &cfg),
+        Err(GeometryError::LengthMismatch(50, 49))
+    ));
+    let zero_f = Camera::pinhole(Pinhole {
+        fx: 0.0,
+        fy: 520.0,
+        cx: 320.0,
+        cy: 240.0,
+    });
+    assert!(matches!(
+        estimate_relative_pose(&scene.u1, &scene.u2, &zero_f, &cfg),
+        Err(GeometryError::Camera(CameraError::BadFocalLength { .. }))
+    ));
+    // Pure noise: no panic, either an error or a flagged/low-support result.
+    let noise2: Vec<Vector2<f64>> = scene.u2.iter().rev().copied().collect();
+    let _ = estimate_relative_pose(&scene.u1, &noise2, &cam, &cfg);
+}
