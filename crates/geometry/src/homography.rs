@@ -1,7 +1,7 @@
 //! Plane-induced homography `x2 ~ H x1` between normalized coordinates: estimation by the
 //! normalized DLT and decomposition into `(R, t, n)` with `H ~ R + t n^T` (Faugeras 1988).
 
-use nalgebra::{Matrix3, SMatrix, SVector, SymmetricEigen, Vector2, Vector3};
+use nalgebra::{Matrix3, SMatrix, SVector, Vector2, Vector3};
 
 /// Similarity `T` with `T (x, y, 1)` centred and scaled to mean distance `sqrt 2`.
 fn normalizing_transform(pts: &[Vector2<f64>]) -> Option<Matrix3<f64>> {
@@ -63,14 +63,13 @@ pub fn homography_dlt(x1: &[Vector2<f64>], x2: &[Vector2<f64>]) -> Option<Matrix
     if !ata.iter().all(|v| v.is_finite()) {
         return None;
     }
-    let eig = SymmetricEigen::new(ata);
-    let mut sorted: Vec<f64> = eig.eigenvalues.iter().copied().collect();
-    sorted.sort_by(f64::total_cmp);
-    // A second (near-)zero eigenvalue means the points do not determine H.
-    if sorted[1] <= 1e-10 * sorted[8] {
+    let svd = ata.svd(false, true);
+    let sv = svd.singular_values;
+    // A second (near-)zero singular value means the points do not determine H.
+    if sv[7] <= 1e-10 * sv[0] {
         return None;
     }
-    let h = eig.eigenvectors.column(eig.eigenvalues.imin());
+    let h = svd.v_t?.row(8).transpose();
     let hn = Matrix3::from_fn(|r, c| h[3 * r + c]);
     let t2_inv = t2.try_inverse()?;
     let hm = t2_inv * hn * t1;

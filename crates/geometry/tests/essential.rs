@@ -64,7 +64,7 @@ proptest! {
         prop_assert_eq!(sols.len(), 1);
         let e = sols[0] / sols[0].norm();
         let t = truth_e(&scene);
-        prop_assert!((e - t).norm().min((e + t).norm()) < TRUTH_TOL);
+        prop_assert!((e - t).norm().min((e + t).norm()) < TRUTH_TOL, "{}", (e - t).norm().min((e + t).norm()));
         // The four candidates contain the truth; chirality keeps it.
         let cands = decompose_essential(&e);
         let close = |r: &nalgebra::Rotation3<f64>| {

@@ -2,7 +2,7 @@
 
 use nalgebra::{Isometry3, Matrix3, Point3, Rotation3, Translation3, UnitQuaternion, Vector3};
 
-use crate::triangulate::{parallax_deg, ray_depths, triangulate_midpoint};
+use crate::triangulate::{parallax_deg, ray_depths, triangulate_corrected};
 
 /// The four candidates `(R, t)` with `E ~ [t]_x R`, `|t| = 1`: with `E = U S V^T`
 /// (`det U = det V = 1`) and `W` the rotation by 90 degrees about `z`,
@@ -43,7 +43,7 @@ impl Default for RecoverConfig {
 pub struct PoseRecovery {
     /// `T_21` with a unit translation.
     pub pose: Isometry3<f64>,
-    /// Midpoint-triangulated points in camera 1 (baseline units) of the used correspondences
+    /// Sampson-corrected midpoints ([`crate::triangulate::triangulate_corrected`]) in camera 1 (baseline units) of the used correspondences
     /// in front of both cameras and closer than the far limit; `None` otherwise.
     pub points: Vec<Option<Point3<f64>>>,
     /// Number of `Some` in `points`.
@@ -125,7 +125,7 @@ pub fn select_by_chirality(
             if !(l1 > 0.0 && l2 > 0.0 && (a * l1).norm() < cfg.far_distance) {
                 return None;
             }
-            let p = triangulate_midpoint(&pose, a, b)?;
+            let p = triangulate_corrected(&pose, a, b)?;
             parallax.push(parallax_deg(&pose, &p));
             Some(p)
         })

@@ -3,10 +3,10 @@
 //! Each correspondence gives one row `(x2 (x) x1)^T e = 0` of `A e = 0` with `e` the row-major
 //! entries of `E`. The inhomogeneous coordinates `(x/z, y/z)` are first translated to their
 //! centroid and scaled to a mean distance of `sqrt 2` (`T1`, `T2`), the least-squares `e` is the
-//! eigenvector of `A^T A` with the smallest eigenvalue, then `E = T2^T E' T1` is projected onto
+//! right singular vector of `A^T A` with the smallest singular value, then `E = T2^T E' T1` is projected onto
 //! the essential manifold: `E = U diag(1, 1, 0) V^T` from the SVD `E = U S V^T`.
 
-use nalgebra::{Matrix3, SMatrix, SymmetricEigen, Vector3};
+use nalgebra::{Matrix3, SMatrix, Vector3};
 
 /// Similarity `T` with `T (x, y, 1)` centred and scaled to mean distance `sqrt 2`.
 fn normalizing_transform(pts: impl Iterator<Item = (f64, f64)> + Clone) -> Option<Matrix3<f64>> {
@@ -86,9 +86,11 @@ pub fn essential_8pt(x1: &[Vector3<f64>], x2: &[Vector3<f64>], out: &mut Vec<Mat
     if !ata.iter().all(|v| v.is_finite()) {
         return;
     }
-    let eig = SymmetricEigen::new(ata);
-    let k = eig.eigenvalues.imin();
-    let e = eig.eigenvectors.column(k);
+    // Null vector from the SVD (sorted singular values; the last right singular vector).
+    let Some(v_t) = ata.svd(false, true).v_t else {
+        return;
+    };
+    let e = v_t.row(8);
     let en = Matrix3::from_fn(|r, c| e[3 * r + c]);
     let ess = project_to_essential(&(t2.transpose() * en * t1));
     let n = ess.norm();
