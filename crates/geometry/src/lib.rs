@@ -18,10 +18,16 @@ pub mod error;
 pub mod essential;
 pub mod homography;
 pub mod lie;
+pub mod p3p;
+pub mod pnp;
 pub mod ransac;
 pub mod relative_pose;
 pub mod triangulate;
+pub mod undistort_map;
 
 pub use camera::{Camera, CameraError, Distortion, Pinhole};
 pub use error::GeometryError;
+pub use pnp::{solve_pnp_ransac, PnpConfig, PnpResult};
 pub use relative_pose::{estimate_relative_pose, Model, RelativePose, RelativePoseConfig};
+pub use triangulate::{triangulate_dlt, triangulate_midpoint};
+pub use undistort_map::UndistortMap;
