@@ -44,48 +44,62 @@ const EXPONENTS: [[u8; 3]; NMON] = [
     [0, 0, 0],
 ];
 
-/// Index in [`Poly`] of the monomial `x^ex y^ey z^ez` (total degree <= 3).
-fn monomial_index(e: [u8; 3]) -> usize {
-    EXPONENTS
-        .iter()
-        .position(|m| *m == e)
-        .expect("products are formed only up to total degree 3")
-}
-
-/// Product table: `PRODUCT[i][j]` is the index of monomial `i` times monomial `j`, or
-/// `usize::MAX` when the degree exceeds 3.
-fn product_table() -> &'static [[usize; NMON]; NMON] {
-    use std::sync::OnceLock;
-    static TABLE: OnceLock<[[usize; NMON]; NMON]> = OnceLock::new();
-    TABLE.get_or_init(|| {
-        let mut t = [[usize::MAX; NMON]; NMON];
-        for (i, a) in EXPONENTS.iter().enumerate() {
-            for (j, b) in EXPONENTS.iter().enumerate() {
-                let e = [a[0] + b[0], a[1] + b[1], a[2] + b[2]];
-                if e.iter().map(|&v| v as u32).sum::<u32>() <= 3 {
-                    t[i][j] = monomial_index(e);
-                }
-            }
+/// Index in [`Poly`] of the monomial `x^ex y^ey z^ez`, `usize::MAX` above degree 3.
+const fn monomial_index(e: [u8; 3]) -> usize {
+    let mut k = 0;
+    while k < NMON {
+        let m = EXPONENTS[k];
+        if m[0] == e[0] && m[1] == e[1] && m[2] == e[2] {
+            return k;
         }
-        t
-    })
+        k += 1;
+    }
+    usize::MAX
 }
 
-/// `a * b`, both polynomials, result of degree <= 3 (the caller guarantees the degrees).
-fn mul(a: &Poly, b: &Poly) -> Poly {
-    let table = product_table();
+/// `PRODUCT[i][j]`: index of monomial `i` times monomial `j` (`usize::MAX` above degree 3).
+const PRODUCT: [[usize; NMON]; NMON] = {
+    let mut t = [[usize::MAX; NMON]; NMON];
+    let mut i = 0;
+    while i < NMON {
+        let mut j = 0;
+        while j < NMON {
+            let a = EXPONENTS[i];
+            let b = EXPONENTS[j];
+            t[i][j] = monomial_index([a[0] + b[0], a[1] + b[1], a[2] + b[2]]);
+            j += 1;
+        }
+        i += 1;
+    }
+    t
+};
+
+/// First index of the monomials of degree <= 1 and <= 2 in [`Poly`].
+const LINEAR: usize = 16;
+const QUADRATIC: usize = 10;
+
+/// `a * b` for `a` supported on indices `from_a..` and `b` on `from_b..` (degree of the
+/// product <= 3 guaranteed by the caller).
+fn mul_from(a: &Poly, from_a: usize, b: &Poly, from_b: usize) -> Poly {
     let mut out = [0.0; NMON];
-    for (i, &ai) in a.iter().enumerate() {
-        if ai == 0.0 {
-            continue;
-        }
-        for (j, &bj) in b.iter().enumerate() {
-            if bj != 0.0 {
-                out[table[i][j]] += ai * bj;
-            }
+    for i in from_a..NMON {
+        let ai = a[i];
+        let row = &PRODUCT[i];
+        for j in from_b..NMON {
+            out[row[j]] += ai * b[j];
         }
     }
     out
+}
+
+/// Product of two linear polynomials.
+fn mul(a: &Poly, b: &Poly) -> Poly {
+    mul_from(a, LINEAR, b, LINEAR)
+}
+
+/// Product of a quadratic and a linear polynomial.
+fn mul_ql(q: &Poly, l: &Poly) -> Poly {
+    mul_from(q, QUADRATIC, l, LINEAR)
 }
 
 fn add(a: &Poly, b: &Poly) -> Poly {
@@ -246,10 +260,10 @@ pub fn essential_5pt(x1: &[Vector3<f64>; 5], x2: &[Vector3<f64>; 5], out: &mut V
     };
     let det = add(
         &add(
-            &mul(&e[0][0], &cof(1, 2, 2, 1)),
-            &mul(&e[0][1], &cof(2, 0, 0, 2)),
+            &mul_ql(&cof(1, 2, 2, 1), &e[0][0]),
+            &mul_ql(&cof(2, 0, 0, 2), &e[0][1]),
         ),
-        &mul(&e[0][2], &cof(0, 1, 1, 0)),
+        &mul_ql(&cof(0, 1, 1, 0), &e[0][2]),
     );
     m[0] = det;
     // E E^T (symmetric, quadratic entries).
@@ -268,9 +282,9 @@ pub fn essential_5pt(x1: &[Vector3<f64>; 5], x2: &[Vector3<f64>; 5], out: &mut V
     // (E E^T - tr/2 I) E = 0, i.e. half the trace constraint.
     for r in 0..3 {
         for c in 0..3 {
-            let mut s = mul(&trace, &e[r][c]);
+            let mut s = mul_ql(&trace, &e[r][c]);
             for k in 0..3 {
-                s = add(&s, &mul(&eet[r][k], &e[k][c]));
+                s = add(&s, &mul_ql(&eet[r][k], &e[k][c]));
             }
             m[1 + 3 * r + c] = s;
         }
@@ -359,6 +373,9 @@ fn eliminate(m: &mut [[f64; NMON]; 10]) -> Option<&[[f64; NMON]; 10]> {
     Some(m)
 }
 
+/// Gauss-Newton steps polishing each root.
+const POLISH_STEPS: usize = 1;
+
 /// Values of the twenty monomials at `(x, y, z)` and their partial derivatives.
 fn monomials(p: [f64; 3]) -> ([f64; NMON], [[f64; NMON]; 3]) {
     let pw = |v: f64, e: u8| -> f64 { (0..e).fold(1.0, |a, _| a * v) };
@@ -381,7 +398,7 @@ fn monomials(p: [f64; 3]) -> ([f64; NMON], [[f64; NMON]; 3]) {
 /// Gauss-Newton refinement of a root `(x, y, z)` of the ten cubic constraints (the
 /// eigen decomposition loses digits on nearly repeated eigenvalues).
 fn polish(system: &[[f64; NMON]; 10], mut p: [f64; 3]) -> (f64, f64, f64) {
-    for _ in 0..3 {
+    for _ in 0..POLISH_STEPS {
         let (val, der) = monomials(p);
         let mut jtj = nalgebra::Matrix3::<f64>::zeros();
         let mut jtr = Vector3::zeros();

@@ -17,6 +17,9 @@ pub struct Correspondences {
     pub u2: Vec<f64>,
     /// `y` of image 2.
     pub v2: Vec<f64>,
+    /// The four coordinates in `f32`, interleaved per correspondence `[u1, v1, u2, v2]`, for
+    /// the vectorised scoring loop.
+    pub packed: Vec<[f32; 4]>,
 }
 
 impl Correspondences {
@@ -36,6 +39,8 @@ impl Correspondences {
         self.v1.push(a.y);
         self.u2.push(b.x);
         self.v2.push(b.y);
+        self.packed
+            .push([a.x as f32, a.y as f32, b.x as f32, b.y as f32]);
     }
 
     /// Homogeneous ray `(x, y, 1)` of correspondence `i` in image 1.
@@ -114,27 +119,33 @@ impl Estimator for EssentialEstimator<'_> {
     }
 
     fn score(&self, e: &Matrix3<f64>, threshold_sq: f64, bound: f64) -> (f64, usize) {
-        let em = row_major(e);
-        let c = self.0;
-        let mut cost = 0.0;
-        let mut inliers = 0;
-        const BLOCK: usize = 64;
-        let n = c.len();
-        let mut start = 0;
-        while start < n {
-            let end = (start + BLOCK).min(n);
-            let (u1, v1) = (&c.u1[start..end], &c.v1[start..end]);
-            let (u2, v2) = (&c.u2[start..end], &c.v2[start..end]);
-            for k in 0..u1.len() {
-                let r = sampson_sq(&em, u1[k], v1[k], u2[k], v2[k]);
-                let inlier = r < threshold_sq;
-                cost += if inlier { r } else { threshold_sq };
-                inliers += inlier as usize;
+        // Branch-free f32 loop over blocks (vectorises); early exit between blocks once the
+        // truncated cost exceeds the best score.
+        let m: [f32; 9] = row_major(e).map(|v| v as f32);
+        let t = threshold_sq as f32;
+        let mut cost = 0.0f64;
+        let mut inliers = 0usize;
+        for block in self.0.packed.chunks(128) {
+            let mut acc = 0.0f32;
+            let mut count = 0u32;
+            for p in block {
+                let [u1, v1, u2, v2] = *p;
+                let l2x = m[0] * u1 + m[1] * v1 + m[2];
+                let l2y = m[3] * u1 + m[4] * v1 + m[5];
+                let l2z = m[6] * u1 + m[7] * v1 + m[8];
+                let l1x = m[0] * u2 + m[3] * v2 + m[6];
+                let l1y = m[1] * u2 + m[4] * v2 + m[7];
+                let c = u2 * l2x + v2 * l2y + l2z;
+                let r = c * c / (l2x * l2x + l2y * l2y + l1x * l1x + l1y * l1y);
+                let inside = r < t;
+                acc += if inside { r } else { t };
+                count += inside as u32;
             }
+            cost += acc as f64;
+            inliers += count as usize;
             if cost > bound {
                 return (f64::INFINITY, inliers);
             }
-            start = end;
         }
         (cost, inliers)
     }

@@ -4,7 +4,8 @@
 //! 1. validation and undistortion of the pixels into normalized coordinates `x_n`;
 //! 2. LO-MSAC of the essential matrix (five-point samples, Sampson error, threshold
 //!    `threshold_px / f` with `f = (fx + fy) / 2`) and of a homography (four-point DLT,
-//!    symmetric transfer error);
+//!    symmetric transfer error), the latter with the iteration budget that would find it if it
+//!    explained as many correspondences as the essential matrix;
 //! 3. model selection as in ORB-SLAM's initialiser: with `sigma = threshold_px`,
 //!    `S_H = sum_i sum_{images} max(0, 5.99 - d^2 / sigma^2)` over transfer errors and
 //!    `S_E = sum_i sum_{images} [d^2 / sigma^2 < 3.84] (5.99 - d^2 / sigma^2)` over distances to
@@ -31,7 +32,7 @@ use crate::error::GeometryError;
 use crate::essential::{decompose_essential, select_by_chirality, PoseRecovery, RecoverConfig};
 use crate::homography::{decompose_homography, HomographyDecomposition};
 use crate::lie::hat;
-use crate::ransac::{ransac, Estimator, RansacConfig};
+use crate::ransac::{ransac, required_iterations, Estimator, RansacConfig};
 use estimators::transfer_sq;
 
 /// Chi-square (95%, 2 DoF) bound of ORB-SLAM's homography score, also its score offset.
@@ -268,8 +269,14 @@ pub fn estimate_relative_pose(
         ..RansacConfig::default()
     };
     let ess = ransac(&EssentialEstimator(&data), &rcfg);
+    // The homography only matters if it can compete with the essential matrix: it gets the
+    // iterations that find an all-inlier 4-sample when its inlier ratio equals the essential's.
+    let h_iterations = ess.as_ref().map_or(cfg.max_iterations, |e| {
+        required_iterations(cfg.confidence, e.inlier_count as f64 / data.len() as f64, 4)
+    });
     let hcfg = RansacConfig {
         threshold: threshold * H_THRESHOLD_FACTOR,
+        max_iterations: h_iterations.min(cfg.max_iterations),
         ..rcfg
     };
     let hom = ransac(&HomographyEstimator(&data), &hcfg);
