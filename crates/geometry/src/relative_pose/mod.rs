@@ -46,6 +46,8 @@ const H_THRESHOLD_FACTOR: f64 = 1.766; // sqrt(2 * 5.99 / 3.84)
 /// Fraction of the selected model's inliers that a rotation alone must explain for the motion
 /// to be declared a pure rotation.
 const ROTATION_SUPPORT: f64 = 0.9;
+/// Lower bound on the homography's iteration budget.
+const H_MIN_ITERATIONS: usize = 100;
 /// Minimum correspondences: the five-point solver's sample.
 const MIN_CORRESPONDENCES: usize = 5;
 
@@ -276,7 +278,7 @@ pub fn estimate_relative_pose(
     });
     let hcfg = RansacConfig {
         threshold: threshold * H_THRESHOLD_FACTOR,
-        max_iterations: h_iterations.min(cfg.max_iterations),
+        max_iterations: h_iterations.max(H_MIN_ITERATIONS).min(cfg.max_iterations),
         ..rcfg
     };
     let hom = ransac(&HomographyEstimator(&data), &hcfg);
@@ -329,6 +331,7 @@ pub fn estimate_relative_pose(
             &rec_cfg,
         );
     }
+    let n_in = x1.len();
     let recovered = recovery.as_ref().filter(|r| r.good >= MIN_CORRESPONDENCES);
     // Pure rotation: the rotation-only model `x2 ~ R x1` (from the homography) explains nearly
     // every correspondence the selected model explains.
@@ -336,7 +339,7 @@ pub fn estimate_relative_pose(
         Model::Homography => hom.as_ref().map_or(0, |h| h.inlier_count),
         Model::Essential => ess.as_ref().map_or(0, |e| e.inlier_count),
     };
-    let rotation_support = hom.as_ref().map_or(0, |h| {
+    let rotation_support: Vec<usize> = hom.as_ref().map_or(Vec::new(), |h| {
         let r = nearest_rotation(&h.model.h);
         let rm = HomographyModel {
             h: *r.matrix(),
@@ -346,47 +349,53 @@ pub fn estimate_relative_pose(
         let thr = (threshold * H_THRESHOLD_FACTOR).powi(2);
         (0..data.len())
             .filter(|&i| est.residual_sq(&rm, i) < thr)
-            .count()
+            .collect()
     });
-    let pure_rotation = rotation_support as f64 >= ROTATION_SUPPORT * support as f64;
+    let pure_rotation = rotation_support.len() as f64 >= ROTATION_SUPPORT * support as f64;
     let low_parallax =
         pure_rotation || recovered.map_or(true, |r| r.median_parallax_deg < cfg.min_parallax_deg);
 
-    let n_in = x1.len();
-    if low_parallax {
-        // Rotation only: from the homography when it explains the data, else from the
-        // recovered motion.
-        let rotation = rotation_only
-            .or_else(|| hom.as_ref().map(|h| nearest_rotation(&h.model.h)))
-            .or_else(|| recovered.map(|r| r.pose.rotation.to_rotation_matrix()))
+    let rotation_only_pose = |initial: &[Rotation3<f64>], parallax_deg: f64| {
+        // The starting rotation whose refinement explains most correspondences.
+        let (rotation, inl) = initial
+            .iter()
+            .map(|r| refine_rotation(&data, *r, threshold * H_THRESHOLD_FACTOR))
+            .max_by_key(|(_, inl)| inl.len())
             .ok_or_else(|| {
                 GeometryError::Degenerate("no motion in front of both cameras".into())
             })?;
-        let inl = hom
-            .as_ref()
-            .map(|h| h.inliers.clone())
-            .unwrap_or_else(|| vec![false; data.len()]);
         let mut inliers = vec![false; n_in];
-        for (k, &i) in index.iter().enumerate() {
-            inliers[i] = inl[k];
+        for &k in &inl {
+            inliers[index[k]] = true;
         }
         let pose = isometry(&rotation, &Vector3::zeros());
-        return Ok(RelativePose {
+        Ok(RelativePose {
             rotation: pose.rotation,
             translation: Vector3::zeros(),
             pose,
             model,
-            inlier_count: inliers.iter().filter(|&&b| b).count(),
+            inlier_count: inl.len(),
             inliers,
             points: vec![None; n_in],
             triangulated: 0,
-            parallax_deg: recovered.map_or(0.0, |r| r.median_parallax_deg),
+            parallax_deg,
             low_parallax: true,
             ambiguous: false,
             alternative: None,
             homography_score_ratio: ratio,
             iterations,
-        });
+        })
+    };
+    if low_parallax {
+        // Rotation only: from the homography when it explains the data, else from the
+        // recovered motion; then least squares on the rotation-only inliers.
+        let mut initial: Vec<Rotation3<f64>> = rotation_only.into_iter().collect();
+        initial.extend(hom.as_ref().map(|h| nearest_rotation(&h.model.h)));
+        initial.extend(recovered.map(|r| r.pose.rotation.to_rotation_matrix()));
+        if let Some(e) = &ess {
+            initial.extend(decompose_essential(&e.model).iter().step_by(2).map(|c| c.0));
+        }
+        return rotation_only_pose(&initial, recovered.map_or(0.0, |r| r.median_parallax_deg));
     }
     let rec = recovered.expect("low_parallax is set when nothing was recovered");
     let ambiguous = 4 * rec.second_good >= 3 * rec.good;
@@ -416,16 +425,13 @@ pub fn estimate_relative_pose(
         inliers[i] = mask[k];
         points[i] = final_rec.points[k];
     }
-    let low_parallax = final_rec.median_parallax_deg < cfg.min_parallax_deg;
-    let translation = if low_parallax {
-        Vector3::zeros()
-    } else {
-        state.1
-    };
-    let pose = isometry(&state.0, &translation);
+    if final_rec.median_parallax_deg < cfg.min_parallax_deg {
+        return rotation_only_pose(&[state.0], final_rec.median_parallax_deg);
+    }
+    let pose = isometry(&state.0, &state.1);
     Ok(RelativePose {
         rotation: pose.rotation,
-        translation,
+        translation: state.1,
         pose,
         model,
         inlier_count: inliers.iter().filter(|&&b| b).count(),
@@ -433,12 +439,51 @@ pub fn estimate_relative_pose(
         triangulated: final_rec.good,
         points,
         parallax_deg: final_rec.median_parallax_deg,
-        low_parallax,
+        low_parallax: false,
         ambiguous,
         alternative,
         homography_score_ratio: ratio,
         iterations,
     })
+}
+
+/// Least-squares rotation of a pure rotation `f2 ~ R f1` over the correspondences `indices`
+/// (orthogonal Procrustes on the unit rays): `R = U diag(1, 1, det(U V^T)) V^T` from the SVD of
+/// `sum f2 f1^T`.
+fn rotation_from_rays(data: &Correspondences, indices: &[usize]) -> Rotation3<f64> {
+    let m: Matrix3<f64> = indices
+        .iter()
+        .map(|&i| data.ray2(i).normalize() * data.ray1(i).normalize().transpose())
+        .sum();
+    nearest_rotation(&m)
+}
+
+/// Alternates rotation-only inliers (transfer error under `threshold`) and the least-squares
+/// rotation on them, a few rounds from `r`; returns the rotation and its inliers.
+fn refine_rotation(
+    data: &Correspondences,
+    mut r: Rotation3<f64>,
+    threshold: f64,
+) -> (Rotation3<f64>, Vec<usize>) {
+    let est = HomographyEstimator(data);
+    let inliers_of = |r: &Rotation3<f64>| -> Vec<usize> {
+        let rm = HomographyModel {
+            h: *r.matrix(),
+            h_inv: r.matrix().transpose(),
+        };
+        (0..data.len())
+            .filter(|&i| est.residual_sq(&rm, i) < threshold * threshold)
+            .collect()
+    };
+    let mut inl = inliers_of(&r);
+    for _ in 0..3 {
+        if inl.len() < 3 {
+            break;
+        }
+        r = rotation_from_rays(data, &inl);
+        inl = inliers_of(&r);
+    }
+    (r, inl)
 }
 
 /// The rotation nearest (Frobenius) to `H` scaled to `det > 0`: `U V^T` of its SVD.
