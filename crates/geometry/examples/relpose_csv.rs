@@ -34,6 +34,8 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             "--threshold" => cfg.threshold_px = value.parse()?,
             "--reps" => reps = value.parse()?,
             "--min-parallax" => cfg.min_parallax_deg = value.parse()?,
+            "--homography-ratio" => cfg.homography_ratio = value.parse()?,
+            "--no-refine" => cfg.refine = value != "1",
             other => return Err(format!("unknown flag {other}").into()),
         }
     }

@@ -13,15 +13,18 @@
 //! 4. pose recovery: the four factorisations of `E` (or up to eight of `H`) are triangulated and
 //!    the one with most points in front of both cameras and closer than the far limit kept;
 //! 5. refinement of `(R, t)` (`t` on the unit sphere) on the inliers by Huber IRLS on the
-//!    Sampson distance; final inliers and points from the refined pose;
-//! 6. a median parallax under `min_parallax_deg` (or `H` a pure rotation) flags `low_parallax`:
-//!    the translation direction is then not determined and reported as zero.
+//!    Sampson distance; when the homography was selected, the essential matrix's own motion is
+//!    refined too and the lower MSAC Sampson cost wins; final inliers and points from the
+//!    refined pose;
+//! 6. a median parallax under `min_parallax_deg` flags `low_parallax` (translation direction
+//!    poorly determined); when a rotation alone explains at least 90% of the model's inliers
+//!    the motion is a pure rotation: least-squares rotation of the rays, zero translation.
 
 mod estimators;
 mod refine;
 
 pub use estimators::{Correspondences, EssentialEstimator, HomographyEstimator, HomographyModel};
-pub use refine::{refine_relative_pose, tangent_basis};
+pub use refine::{refine_relative_pose, tangent_basis, RelState};
 
 use nalgebra::{
     Isometry3, Matrix3, Point3, Rotation3, Translation3, UnitQuaternion, Vector2, Vector3,
@@ -46,6 +49,8 @@ const H_THRESHOLD_FACTOR: f64 = 1.766; // sqrt(2 * 5.99 / 3.84)
 /// Fraction of the selected model's inliers that a rotation alone must explain for the motion
 /// to be declared a pure rotation.
 const ROTATION_SUPPORT: f64 = 0.9;
+/// Two refined motions whose MSAC costs are within this factor are reported as ambiguous.
+const AMBIGUITY_MARGIN: f64 = 0.95;
 /// Lower bound on the homography's iteration budget.
 const H_MIN_ITERATIONS: usize = 100;
 /// Minimum correspondences: the five-point solver's sample.
@@ -101,7 +106,7 @@ pub enum Model {
 pub struct RelativePose {
     /// `R_21`.
     pub rotation: UnitQuaternion<f64>,
-    /// Unit translation direction `t_21`, zero when `low_parallax`.
+    /// Unit translation direction `t_21`, zero for a pure rotation.
     pub translation: Vector3<f64>,
     /// `T_21 = (R_21, t_21)`.
     pub pose: Isometry3<f64>,
@@ -119,8 +124,12 @@ pub struct RelativePose {
     pub triangulated: usize,
     /// Median parallax angle of the triangulated points, degrees.
     pub parallax_deg: f64,
-    /// Too little parallax to determine the translation (includes pure rotation).
+    /// Median parallax under `min_parallax_deg` (or a pure rotation): the translation direction
+    /// is poorly determined.
     pub low_parallax: bool,
+    /// A rotation alone explains the correspondences: the translation is reported as zero and
+    /// the rotation is the least-squares rotation of the rays.
+    pub pure_rotation: bool,
     /// Two motions explain the data about equally (planar two-fold ambiguity).
     pub ambiguous: bool,
     /// The other motion when `ambiguous`.
@@ -331,6 +340,18 @@ pub fn estimate_relative_pose(
             &rec_cfg,
         );
     }
+    // The essential matrix's own motion competes with the homography's after refinement
+    // (near-planar scenes: the homography's decomposition may pick the wrong twin).
+    let e_recovery = match (model, ess.as_ref()) {
+        (Model::Homography, Some(e)) => select_by_chirality(
+            &decompose_essential(&e.model),
+            &b1,
+            &b2,
+            &e.inliers,
+            &rec_cfg,
+        ),
+        _ => None,
+    };
     let n_in = x1.len();
     let recovered = recovery.as_ref().filter(|r| r.good >= MIN_CORRESPONDENCES);
     // Pure rotation: the rotation-only model `x2 ~ R x1` (from the homography) explains nearly
@@ -340,20 +361,19 @@ pub fn estimate_relative_pose(
         Model::Essential => ess.as_ref().map_or(0, |e| e.inlier_count),
     };
     let rotation_support: Vec<usize> = hom.as_ref().map_or(Vec::new(), |h| {
-        let r = nearest_rotation(&h.model.h);
-        let rm = HomographyModel {
-            h: *r.matrix(),
-            h_inv: r.matrix().transpose(),
-        };
-        let est = HomographyEstimator(&data);
-        let thr = (threshold * H_THRESHOLD_FACTOR).powi(2);
-        (0..data.len())
-            .filter(|&i| est.residual_sq(&rm, i) < thr)
-            .collect()
+        refine_rotation(
+            &data,
+            nearest_rotation(&h.model.h),
+            threshold * H_THRESHOLD_FACTOR,
+        )
+        .1
     });
     let pure_rotation = rotation_support.len() as f64 >= ROTATION_SUPPORT * support as f64;
-    let low_parallax =
-        pure_rotation || recovered.map_or(true, |r| r.median_parallax_deg < cfg.min_parallax_deg);
+    let rotation_only_case = pure_rotation
+        || (recovered.is_none()
+            && e_recovery
+                .as_ref()
+                .map_or(true, |r| r.good < MIN_CORRESPONDENCES));
 
     let rotation_only_pose = |initial: &[Rotation3<f64>], parallax_deg: f64| {
         // The starting rotation whose refinement explains most correspondences.
@@ -380,13 +400,14 @@ pub fn estimate_relative_pose(
             triangulated: 0,
             parallax_deg,
             low_parallax: true,
+            pure_rotation: true,
             ambiguous: false,
             alternative: None,
             homography_score_ratio: ratio,
             iterations,
         })
     };
-    if low_parallax {
+    if rotation_only_case {
         // Rotation only: from the homography when it explains the data, else from the
         // recovered motion; then least squares on the rotation-only inliers.
         let mut initial: Vec<Rotation3<f64>> = rotation_only.into_iter().collect();
@@ -397,23 +418,56 @@ pub fn estimate_relative_pose(
         }
         return rotation_only_pose(&initial, recovered.map_or(0.0, |r| r.median_parallax_deg));
     }
-    let rec = recovered.expect("low_parallax is set when nothing was recovered");
-    let ambiguous = 4 * rec.second_good >= 3 * rec.good;
-    let alternative = if ambiguous { rec.runner_up } else { None };
-    let mut state = (
-        rec.pose.rotation.to_rotation_matrix(),
-        rec.pose.translation.vector,
-    );
-    let used: Vec<usize> = (0..data.len())
-        .filter(|&k| rec.points[k].is_some())
-        .collect();
-    if cfg.refine {
-        state = refine_relative_pose(&data, &used, focal, 0.5 * cfg.threshold_px, state);
-    }
-    // Final inliers and points from the refined pose.
-    let e = hat(&state.1) * state.0.matrix();
+    // Refine each candidate motion on its triangulated correspondences; keep the lowest MSAC
+    // Sampson cost over all correspondences.
     let thr_sq = threshold * threshold;
     let est = EssentialEstimator(&data);
+    let mut refined: Vec<(RelState, f64, Model, &PoseRecovery)> = Vec::with_capacity(2);
+    let candidates = [
+        (recovered, model),
+        (
+            e_recovery
+                .as_ref()
+                .filter(|r| r.good >= MIN_CORRESPONDENCES),
+            Model::Essential,
+        ),
+    ];
+    for (rec, m) in candidates {
+        let Some(rec) = rec else { continue };
+        let mut state = (
+            rec.pose.rotation.to_rotation_matrix(),
+            rec.pose.translation.vector,
+        );
+        if cfg.refine {
+            let used: Vec<usize> = (0..data.len())
+                .filter(|&k| rec.points[k].is_some())
+                .collect();
+            state = refine_relative_pose(&data, &used, focal, 0.5 * cfg.threshold_px, state);
+        }
+        let e = hat(&state.1) * state.0.matrix();
+        let (cost, _) = est.score(&e, thr_sq, f64::INFINITY);
+        refined.push((state, cost, m, rec));
+    }
+    refined.sort_by(|a, b| a.1.total_cmp(&b.1));
+    let (state, cost, model, rec) = *refined
+        .first()
+        .expect("the rotation-only case handles no recovery");
+    // Two refined motions with nearly equal cost (a plane's twins, or a near-planar scene):
+    // report both.
+    let rival = refined.get(1).filter(|r| {
+        r.1 * AMBIGUITY_MARGIN <= cost
+            && (UnitQuaternion::from_rotation_matrix(&r.0 .0)
+                .angle_to(&UnitQuaternion::from_rotation_matrix(&state.0))
+                > 1e-3
+                || r.0 .1.dot(&state.1) < 0.9998)
+    });
+    let (ambiguous, alternative) = match rival {
+        Some(r) => (true, Some(isometry(&r.0 .0, &r.0 .1))),
+        None if 4 * rec.second_good >= 3 * rec.good => (true, rec.runner_up),
+        None => (false, None),
+    };
+    // Final inliers and points from the refined pose.
+    let e = hat(&state.1) * state.0.matrix();
     let mask: Vec<bool> = (0..data.len())
         .map(|k| est.residual_sq(&e, k) < thr_sq)
         .collect();
@@ -424,9 +478,6 @@ pub fn estimate_relative_pose(
     for (k, &i) in index.iter().enumerate() {
         inliers[i] = mask[k];
         points[i] = final_rec.points[k];
-    }
-    if final_rec.median_parallax_deg < cfg.min_parallax_deg {
-        return rotation_only_pose(&[state.0], final_rec.median_parallax_deg);
     }
     let pose = isometry(&state.0, &state.1);
     Ok(RelativePose {
@@ -439,7 +490,8 @@ pub fn estimate_relative_pose(
         triangulated: final_rec.good,
         points,
         parallax_deg: final_rec.median_parallax_deg,
-        low_parallax: false,
+        low_parallax: final_rec.median_parallax_deg < cfg.min_parallax_deg,
+        pure_rotation: false,
         ambiguous,
         alternative,
         homography_score_ratio: ratio,
