@@ -64,16 +64,39 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     }
     times.sort_by(f64::total_cmp);
     let rel = result.expect("at least one repetition")?;
+    let alt = rel
+        .alternative
+        .map_or(("null".to_string(), "null".to_string()), |a| {
+            let m = a.rotation.to_rotation_matrix().into_inner();
+            let t = a.translation.vector;
+            (
+                format!(
+                    "[[{}, {}, {}], [{}, {}, {}], [{}, {}, {}]]",
+                    m[(0, 0)],
+                    m[(0, 1)],
+                    m[(0, 2)],
+                    m[(1, 0)],
+                    m[(1, 1)],
+                    m[(1, 2)],
+                    m[(2, 0)],
+                    m[(2, 1)],
+                    m[(2, 2)]
+                ),
+                format!("[{}, {}, {}]", t.x, t.y, t.z),
+            )
+        });
     let r = rel.rotation.to_rotation_matrix();
     let m = r.matrix();
     println!(
         "{{\"R\": [[{}, {}, {}], [{}, {}, {}], [{}, {}, {}]], \"t\": [{}, {}, {}], \"model\": \"{:?}\", \
          \"inliers\": {}, \"triangulated\": {}, \"parallax_deg\": {:.3}, \"low_parallax\": {}, \
-         \"homography_ratio\": {:.3}, \"iterations\": [{}, {}], \"ms\": {:.3}, \"n\": {}}}",
+         \"homography_ratio\": {:.3}, \"iterations\": [{}, {}], \"ms\": {:.3}, \"n\": {}, \
+         \"ambiguous\": {}, \"alt_R\": {}, \"alt_t\": {}}}",
         m[(0, 0)], m[(0, 1)], m[(0, 2)], m[(1, 0)], m[(1, 1)], m[(1, 2)], m[(2, 0)], m[(2, 1)], m[(2, 2)],
         rel.translation.x, rel.translation.y, rel.translation.z, rel.model, rel.inlier_count,
         rel.triangulated, rel.parallax_deg, rel.low_parallax, rel.homography_score_ratio,
-        rel.iterations.0, rel.iterations.1, times[times.len() / 2], x1.len()
+        rel.iterations.0, rel.iterations.1, times[times.len() / 2], x1.len(), rel.ambiguous,
+        alt.0, alt.1
     );
     Ok(())
 }

@@ -449,6 +449,25 @@ pub fn estimate_relative_pose(
         refined.push((state, cost, m, rec));
     }
     refined.sort_by(|a, b| a.1.total_cmp(&b.1));
+    // Nearly equal costs: prefer the motion whose rotation is closest to the least-squares
+    // rotation-only fit (the infinite homography), the small-baseline prior of video frames.
+    if refined.len() == 2 && refined[1].1 * AMBIGUITY_MARGIN <= refined[0].1 {
+        {
+            let mut starts = vec![refined[0].0 .0, refined[1].0 .0];
+            starts.extend(hom.as_ref().map(|h| nearest_rotation(&h.model.h)));
+            let r_inf = starts
+                .into_iter()
+                .map(|r| refine_rotation(&data, r, threshold * H_THRESHOLD_FACTOR))
+                .max_by_key(|(_, inl)| inl.len())
+                .map(|(r, _)| r)
+                .expect("two starting rotations");
+            let q_inf = UnitQuaternion::from_rotation_matrix(&r_inf);
+            let dist = |s: &RelState| UnitQuaternion::from_rotation_matrix(&s.0).angle_to(&q_inf);
+            if dist(&refined[1].0) < dist(&refined[0].0) {
+                refined.swap(0, 1);
+            }
+        }
+    }
     let (state, cost, model, rec) = *refined
         .first()
         .expect("the rotation-only case handles no recovery");
@@ -456,6 +475,7 @@ pub fn estimate_relative_pose(
     // report both.
     let rival = refined.get(1).filter(|r| {
         r.1 * AMBIGUITY_MARGIN <= cost
+            && cost * AMBIGUITY_MARGIN <= r.1
             && (UnitQuaternion::from_rotation_matrix(&r.0 .0)
                 .angle_to(&UnitQuaternion::from_rotation_matrix(&state.0))
                 > 1e-3
