@@ -219,3 +219,94 @@ pub fn ransac<E: Estimator>(est: &E, cfg: &RansacConfig) -> Option<RansacResult<
         iterations,
     })
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Line `y = a x + b` through two points; residual is the vertical distance.
+    struct Line(Vec<(f64, f64)>);
+
+    impl Estimator for Line {
+        type Model = (f64, f64);
+        fn sample_size(&self) -> usize {
+            2
+        }
+        fn len(&self) -> usize {
+            self.0.len()
+        }
+        fn fit_minimal(&self, s: &[usize], out: &mut Vec<(f64, f64)>) {
+            out.clear();
+            let ((x0, y0), (x1, y1)) = (self.0[s[0]], self.0[s[1]]);
+            if (x1 - x0).abs() > 1e-12 {
+                let a = (y1 - y0) / (x1 - x0);
+                out.push((a, y0 - a * x0));
+            }
+        }
+        fn fit_nonminimal(&self, s: &[usize], out: &mut Vec<(f64, f64)>) {
+            out.clear();
+            let n = s.len() as f64;
+            let (mx, my) = s
+                .iter()
+                .fold((0.0, 0.0), |(a, b), &i| (a + self.0[i].0, b + self.0[i].1));
+            let (mx, my) = (mx / n, my / n);
+            let sxy: f64 = s
+                .iter()
+                .map(|&i| (self.0[i].0 - mx) * (self.0[i].1 - my))
+                .sum();
+            let sxx: f64 = s.iter().map(|&i| (self.0[i].0 - mx).powi(2)).sum();
+            let a = sxy / sxx;
+            out.push((a, my - a * mx));
+        }
+        fn residual_sq(&self, m: &(f64, f64), i: usize) -> f64 {
+            let (x, y) = self.0[i];
+            (m.0 * x + m.1 - y).powi(2)
+        }
+    }
+
+    fn data() -> Line {
+        // 60 points on y = 2x + 1 with +-0.05 deterministic noise, 60 gross outliers.
+        let mut pts = Vec::new();
+        for i in 0..120 {
+            let x = i as f64 * 0.1;
+            let noise = 0.05 * ((i * 7919 % 13) as f64 / 6.0 - 1.0);
+            let y = if i % 2 == 0 {
+                2.0 * x + 1.0 + noise
+            } else {
+                ((i * 104_729) % 97) as f64 - 40.0
+            };
+            pts.push((x, y));
+        }
+        Line(pts)
+    }
+
+    #[test]
+    fn adaptive_iteration_count_matches_the_formula() {
+        // log(1 - 0.99) / log(1 - 0.5^2) = 16.0078...
+        assert_eq!(required_iterations(0.99, 0.5, 2), 17);
+        assert_eq!(required_iterations(0.99, 1.0, 2), 1);
+        assert_eq!(required_iterations(0.99, 0.0, 2), usize::MAX);
+    }
+
+    #[test]
+    fn finds_the_line_among_half_outliers_reproducibly() {
+        let d = data();
+        let cfg = RansacConfig {
+            threshold: 0.1,
+            ..Default::default()
+        };
+        let a = ransac(&d, &cfg).expect("a model");
+        assert!((a.model.0 - 2.0).abs() < 0.01 && (a.model.1 - 1.0).abs() < 0.05);
+        assert!(a.inlier_count >= 60 && a.inlier_count <= 62);
+        // Stops long before the cap once the inlier ratio is known.
+        assert!(a.iterations < 100);
+        let b = ransac(&d, &cfg).expect("a model");
+        assert_eq!((a.model, a.iterations), (b.model, b.iterations));
+    }
+
+    #[test]
+    fn too_few_points_give_none() {
+        let d = Line(vec![(0.0, 0.0)]);
+        assert!(ransac(&d, &RansacConfig::default()).is_none());
+    }
+}

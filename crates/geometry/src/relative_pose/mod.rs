@@ -69,7 +69,8 @@ pub struct RelativePoseConfig {
     pub seed: u64,
     /// Nonlinear refinement of `(R, t)` on the inliers.
     pub refine: bool,
-    /// Median parallax (degrees) below which the translation is declared undetermined.
+    /// Median parallax (degrees) below which `low_parallax` flags the translation direction as
+    /// poorly determined.
     pub min_parallax_deg: f64,
     /// `S_H / (S_H + S_E)` above which the homography is used.
     pub homography_ratio: f64,
