@@ -6,7 +6,8 @@ use crate::essential::{essential_5pt, essential_8pt};
 use crate::homography::homography_dlt;
 use crate::ransac::Estimator;
 
-/// Normalized coordinates of the correspondences, one array per coordinate.
+/// Normalized coordinates of the correspondences, one array per coordinate; built with
+/// [`Correspondences::push`].
 #[derive(Debug, Clone, Default)]
 pub struct Correspondences {
     /// `x` of image 1.
@@ -18,8 +19,8 @@ pub struct Correspondences {
     /// `y` of image 2.
     pub v2: Vec<f64>,
     /// The four coordinates in `f32`, interleaved per correspondence `[u1, v1, u2, v2]`, for
-    /// the vectorised scoring loop.
-    pub packed: Vec<[f32; 4]>,
+    /// the vectorised scoring loop (kept in step with the other arrays by [`Self::push`]).
+    packed: Vec<[f32; 4]>,
 }
 
 impl Correspondences {
