@@ -3,7 +3,7 @@
 //! The refinement minimises `sum_i rho(|u_i - pi(T P_i)|)` over `T = T_cw` with
 //! `pi(X) = K D(X_xy / X_z)` (the full camera model, distortion included), a Huber loss and
 //! the left perturbation `T <- exp(delta) T`, `delta = (rho, phi)`, through
-//! [`vofront_robust::irls`]. Its `sigma^2 H^-1` covariance of `delta` (metres, radians) is
+//! [`vofront_robust::irls()`]. Its `sigma^2 H^-1` covariance of `delta` (metres, radians) is
 //! returned as a quality score.
 
 use nalgebra::{Isometry3, Matrix2x3, Matrix6, Point3, SVector, Vector2, Vector3};

@@ -1,5 +1,5 @@
 //! Robust refinement of `(R, t)` on the unit sphere by the Sampson error, through
-//! [`vofront_robust::irls`].
+//! [`vofront_robust::irls()`].
 //!
 //! State: `R` and a unit `t`; increment `delta = (phi, a, b)` (5 DoF) applied as
 //! `R <- exp(phi) R`, `t <- normalize(t + a b1 + b b2)` with `(b1, b2)` an orthonormal basis
