@@ -2,9 +2,14 @@
 
 use nalgebra::{Matrix3, Vector2, Vector3};
 
-use crate::essential::{essential_5pt, essential_8pt};
+use super::refine::refine_relative_pose;
+use crate::essential::{
+    decompose_essential, essential_5pt, essential_8pt, select_by_chirality, RecoverConfig,
+};
 use crate::homography::homography_dlt;
+use crate::lie::hat;
 use crate::ransac::Estimator;
+use vofront_robust::Loss;
 
 /// Normalized coordinates of the correspondences, one array per coordinate; built with
 /// [`Correspondences::push`].
@@ -88,8 +93,10 @@ fn row_major(m: &Matrix3<f64>) -> [f64; 9] {
 }
 
 /// Essential matrix hypotheses from the five-point solver, scored by the Sampson error
-/// (normalized units; the threshold is `threshold_px / f`).
-pub struct EssentialEstimator<'a>(pub &'a Correspondences);
+/// (normalized units; the threshold is `threshold_px / f`). The second field is the noise
+/// scale (normalized units) of the local optimisation, which refits on the inliers by the
+/// eight-point algorithm followed by Huber IRLS on the Sampson distance.
+pub struct EssentialEstimator<'a>(pub &'a Correspondences, pub f64);
 
 impl Estimator for EssentialEstimator<'_> {
     type Model = Matrix3<f64>;
@@ -112,6 +119,26 @@ impl Estimator for EssentialEstimator<'_> {
         let a: Vec<Vector3<f64>> = indices.iter().map(|&i| self.0.ray1(i)).collect();
         let b: Vec<Vector3<f64>> = indices.iter().map(|&i| self.0.ray2(i)).collect();
         essential_8pt(&a, &b, out);
+        let Some(e8) = out.first().copied() else {
+            return;
+        };
+        let used = vec![true; a.len()];
+        let rec = select_by_chirality(
+            &decompose_essential(&e8),
+            &a,
+            &b,
+            &used,
+            &RecoverConfig::default(),
+        );
+        if let Some(rec) = rec.filter(|r| r.good >= 5) {
+            let init = (
+                rec.pose.rotation.to_rotation_matrix(),
+                rec.pose.translation.vector,
+            );
+            let (r, t) =
+                refine_relative_pose(self.0, indices, 1.0, self.1, Loss::Huber(1.345), init);
+            out.push(hat(&t) * r.matrix());
+        }
     }
 
     fn residual_sq(&self, e: &Matrix3<f64>, i: usize) -> f64 {

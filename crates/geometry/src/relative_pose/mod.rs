@@ -25,6 +25,7 @@ mod refine;
 
 pub use estimators::{Correspondences, EssentialEstimator, HomographyEstimator, HomographyModel};
 pub use refine::{refine_relative_pose, tangent_basis, RelState};
+use vofront_robust::Loss;
 
 use nalgebra::{
     Isometry3, Matrix3, Point3, Rotation3, Translation3, UnitQuaternion, Vector2, Vector3,
@@ -280,7 +281,7 @@ pub fn estimate_relative_pose(
         seed: cfg.seed,
         ..RansacConfig::default()
     };
-    let ess = ransac(&EssentialEstimator(&data), &rcfg);
+    let ess = ransac(&EssentialEstimator(&data, 0.5 * threshold), &rcfg);
     // The homography only matters if it can compete with the essential matrix: it gets the
     // iterations that find an all-inlier 4-sample when its inlier ratio equals the essential's.
     let h_iterations = ess.as_ref().map_or(cfg.max_iterations, |e| {
@@ -422,7 +423,8 @@ pub fn estimate_relative_pose(
     // Refine each candidate motion on its triangulated correspondences; keep the lowest MSAC
     // Sampson cost over all correspondences.
     let thr_sq = threshold * threshold;
-    let est = EssentialEstimator(&data);
+    let sigma = 0.5 * cfg.threshold_px;
+    let est = EssentialEstimator(&data, 0.5 * threshold);
     let mut refined: Vec<(RelState, f64, Model, &PoseRecovery)> = Vec::with_capacity(2);
     let candidates = [
         (recovered, model),
@@ -443,7 +445,7 @@ pub fn estimate_relative_pose(
             let used: Vec<usize> = (0..data.len())
                 .filter(|&k| rec.points[k].is_some())
                 .collect();
-            state = refine_relative_pose(&data, &used, focal, 0.5 * cfg.threshold_px, state);
+            state = refine_relative_pose(&data, &used, focal, sigma, Loss::Huber(1.345), state);
         }
         let e = hat(&state.1) * state.0.matrix();
         let (cost, _) = est.score(&e, thr_sq, f64::INFINITY);
@@ -482,6 +484,18 @@ pub fn estimate_relative_pose(
                 > 1e-3
                 || r.0 .1.dot(&state.1) < 0.9998)
     });
+    // Final polish of the chosen motion: least squares of the Sampson distance on its inliers
+    // (maximum likelihood for Gaussian pixel noise once the outliers are out).
+    let mut state = state;
+    if cfg.refine {
+        let e = hat(&state.1) * state.0.matrix();
+        let inl: Vec<usize> = (0..data.len())
+            .filter(|&k| est.residual_sq(&e, k) < thr_sq)
+            .collect();
+        if inl.len() >= MIN_CORRESPONDENCES {
+            state = refine_relative_pose(&data, &inl, focal, sigma, Loss::Squared, state);
+        }
+    }
     let (ambiguous, alternative) = match rival {
         Some(r) => (true, Some(isometry(&r.0 .0, &r.0 .1))),
         None if 4 * rec.second_good >= 3 * rec.good => (true, rec.runner_up),

@@ -79,13 +79,14 @@ impl Problem<5> for SampsonProblem<'_> {
     }
 }
 
-/// Refines `(R, t)` on the correspondences `indices` with a Huber loss on the Sampson
-/// distance in pixels (`sigma_px` the noise scale); returns the input when the solve fails.
+/// Refines `(R, t)` on the correspondences `indices` with `loss` on the Sampson distance in
+/// pixels divided by `sigma_px`; returns the input when the solve fails.
 pub fn refine_relative_pose(
     data: &Correspondences,
     indices: &[usize],
     focal: f64,
     sigma_px: f64,
+    loss: Loss,
     init: RelState,
 ) -> RelState {
     let mut problem = SampsonProblem {
@@ -94,7 +95,7 @@ pub fn refine_relative_pose(
         focal,
     };
     let cfg = IrlsConfig {
-        loss: Loss::Huber(1.345),
+        loss,
         scale: ScaleMode::Fixed(sigma_px),
         max_iterations: 20,
         min_step: 1e-9,
