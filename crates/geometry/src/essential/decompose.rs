@@ -1,0 +1,173 @@
+//! The four `(R, t)` factorisations of an essential matrix and the chirality test.
+
+use nalgebra::{Isometry3, Matrix3, Point3, Rotation3, Translation3, UnitQuaternion, Vector3};
+
+use crate::triangulate::{parallax_deg, ray_depths, triangulate_corrected};
+
+/// The four candidates `(R, t)` with `E ~ [t]_x R`, `|t| = 1`: with `E = U S V^T`
+/// (`det U = det V = 1`) and `W` the rotation by 90 degrees about `z`,
+/// `R in {U W V^T, U W^T V^T}`, `t = +-u_3`.
+pub fn decompose_essential(e: &Matrix3<f64>) -> [(Rotation3<f64>, Vector3<f64>); 4] {
+    let svd = e.svd(true, true);
+    let mut u = svd.u.unwrap_or_else(Matrix3::identity);
+    let mut v_t = svd.v_t.unwrap_or_else(Matrix3::identity);
+    if u.determinant() < 0.0 {
+        u = -u;
+    }
+    if v_t.determinant() < 0.0 {
+        v_t = -v_t;
+    }
+    let w = Matrix3::new(0.0, -1.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0, 1.0);
+    let r1 = Rotation3::from_matrix_unchecked(u * w * v_t);
+    let r2 = Rotation3::from_matrix_unchecked(u * w.transpose() * v_t);
+    let t: Vector3<f64> = u.column(2).into_owned();
+    [(r1, t), (r1, -t), (r2, t), (r2, -t)]
+}
+
+/// Settings of [`recover_pose`].
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct RecoverConfig {
+    /// Points farther than this (in units of the baseline `|t| = 1`) from camera 1 are not
+    /// counted as good (they carry no translation information).
+    pub far_distance: f64,
+}
+
+impl Default for RecoverConfig {
+    fn default() -> Self {
+        Self { far_distance: 50.0 }
+    }
+}
+
+/// Result of the chirality test.
+#[derive(Debug, Clone, PartialEq)]
+pub struct PoseRecovery {
+    /// `T_21` with a unit translation.
+    pub pose: Isometry3<f64>,
+    /// Sampson-corrected midpoints ([`crate::triangulate::triangulate_corrected`]) in camera 1 (baseline units) of the used correspondences
+    /// in front of both cameras and closer than the far limit; `None` otherwise.
+    pub points: Vec<Option<Point3<f64>>>,
+    /// Number of `Some` in `points`.
+    pub good: usize,
+    /// Good points of the runner-up candidate (ambiguity check).
+    pub second_good: usize,
+    /// The runner-up candidate pose (the other solution of a planar scene).
+    pub runner_up: Option<Isometry3<f64>>,
+    /// Median parallax angle (degrees) of the good points, 0 when there are none.
+    pub median_parallax_deg: f64,
+}
+
+/// Counts, for the pose `T_21`, the used correspondences in front of both cameras and
+/// closer than `far`.
+fn count_in_front(
+    pose: &Isometry3<f64>,
+    x1: &[Vector3<f64>],
+    x2: &[Vector3<f64>],
+    used: &[bool],
+    far: f64,
+) -> usize {
+    x1.iter()
+        .zip(x2)
+        .zip(used)
+        .filter(|((a, b), &u)| {
+            u && ray_depths(pose, a, b)
+                .is_some_and(|(l1, l2)| l1 > 0.0 && l2 > 0.0 && a.norm() * l1 < far)
+        })
+        .count()
+}
+
+/// Chooses, among candidate poses, the one with the most correspondences (where `used`) in
+/// front of both cameras and closer than the far limit, and triangulates them.
+pub fn select_by_chirality(
+    candidates: &[(Rotation3<f64>, Vector3<f64>)],
+    x1: &[Vector3<f64>],
+    x2: &[Vector3<f64>],
+    used: &[bool],
+    cfg: &RecoverConfig,
+) -> Option<PoseRecovery> {
+    let poses: Vec<Isometry3<f64>> = candidates
+        .iter()
+        .map(|(r, t)| {
+            Isometry3::from_parts(
+                Translation3::from(*t),
+                UnitQuaternion::from_rotation_matrix(r),
+            )
+        })
+        .collect();
+    let mut counts: Vec<(usize, usize)> = poses
+        .iter()
+        .enumerate()
+        .map(|(k, p)| (count_in_front(p, x1, x2, used, cfg.far_distance), k))
+        .collect();
+    // Most points in front first; equal counts (the two-fold ambiguity of a plane) prefer the
+    // smaller rotation, the usual case between nearby video frames.
+    counts.sort_by(|a, b| {
+        b.0.cmp(&a.0).then(
+            poses[a.1]
+                .rotation
+                .angle()
+                .total_cmp(&poses[b.1].rotation.angle()),
+        )
+    });
+    let &(_, best) = counts.first()?;
+    let second_good = counts.get(1).map_or(0, |c| c.0);
+    let runner_up = counts.get(1).map(|c| poses[c.1]);
+    let pose = poses[best];
+    let mut parallax = Vec::with_capacity(x1.len());
+    let points: Vec<Option<Point3<f64>>> = x1
+        .iter()
+        .zip(x2)
+        .zip(used)
+        .map(|((a, b), &u)| {
+            if !u {
+                return None;
+            }
+            let (l1, l2) = ray_depths(&pose, a, b)?;
+            if !(l1 > 0.0 && l2 > 0.0 && (a * l1).norm() < cfg.far_distance) {
+                return None;
+            }
+            let p = triangulate_corrected(&pose, a, b)?;
+            parallax.push(parallax_deg(&pose, &p));
+            Some(p)
+        })
+        .collect();
+    let good = points.iter().filter(|p| p.is_some()).count();
+    parallax.sort_by(f64::total_cmp);
+    let median_parallax_deg = parallax.get(parallax.len() / 2).copied().unwrap_or(0.0);
+    Some(PoseRecovery {
+        pose,
+        points,
+        good,
+        second_good,
+        runner_up,
+        median_parallax_deg,
+    })
+}
+
+/// Recovers `T_21` (unit translation) from an essential matrix and the correspondences used
+/// (`used[i]`, e.g. RANSAC inliers): the candidate of [`decompose_essential`] with the most
+/// points in front of both cameras and closer than `cfg.far_distance`.
+///
+/// ```
+/// use nalgebra::{Point3, Rotation3, Vector3};
+/// use vofront_geometry::essential::{recover_pose, RecoverConfig};
+/// let r = Rotation3::new(Vector3::new(0.0, 0.1, 0.0));
+/// let t = Vector3::new(1.0, 0.0, 0.0);
+/// let x1: Vec<Vector3<f64>> = (0..20).map(|i| Vector3::new(i as f64 * 0.1 - 1.0, (i % 3) as f64 * 0.3, 5.0 + (i % 5) as f64)).collect();
+/// let x2: Vec<Vector3<f64>> = x1.iter().map(|p| r * p + t).collect();
+/// let e = vofront_geometry::lie::hat(&t) * r.matrix();
+/// let rec = recover_pose(&e, &x1, &x2, &vec![true; 20], &RecoverConfig::default()).unwrap();
+/// assert_eq!(rec.good, 20);
+/// assert!((rec.pose.translation.vector - t).norm() < 1e-9);
+/// ```
+pub fn recover_pose(
+    e: &Matrix3<f64>,
+    x1: &[Vector3<f64>],
+    x2: &[Vector3<f64>],
+    used: &[bool],
+    cfg: &RecoverConfig,
+) -> Option<PoseRecovery> {
+    if x1.len() != x2.len() || x1.len() != used.len() {
+        return None;
+    }
+    select_by_chirality(&decompose_essential(e), x1, x2, used, cfg)
+}

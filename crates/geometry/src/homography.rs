@@ -1,0 +1,183 @@
+//! Plane-induced homography `x2 ~ H x1` between normalized coordinates: estimation by the
+//! normalized DLT and decomposition into `(R, t, n)` with `H ~ R + t n^T` (Faugeras 1988).
+
+use nalgebra::{Matrix3, SMatrix, SVector, Vector2, Vector3};
+
+/// Similarity `T` with `T (x, y, 1)` centred and scaled to mean distance `sqrt 2`.
+fn normalizing_transform(pts: &[Vector2<f64>]) -> Option<Matrix3<f64>> {
+    let n = pts.len() as f64;
+    let mean = pts.iter().sum::<Vector2<f64>>() / n;
+    let d = pts.iter().map(|p| (p - mean).norm()).sum::<f64>() / n;
+    if d.is_nan() || d <= 1e-12 || !d.is_finite() {
+        return None;
+    }
+    let s = std::f64::consts::SQRT_2 / d;
+    Some(Matrix3::new(
+        s,
+        0.0,
+        -s * mean.x,
+        0.0,
+        s,
+        -s * mean.y,
+        0.0,
+        0.0,
+        1.0,
+    ))
+}
+
+/// The two DLT rows of `x2 ~ H x1` (entries of `H` row-major).
+fn dlt_rows(a: &Vector3<f64>, b: &Vector3<f64>) -> [SVector<f64, 9>; 2] {
+    let (x, y) = (a.x, a.y);
+    let (u, v) = (b.x, b.y);
+    [
+        SVector::from([-x, -y, -1.0, 0.0, 0.0, 0.0, u * x, u * y, u]),
+        SVector::from([0.0, 0.0, 0.0, -x, -y, -1.0, v * x, v * y, v]),
+    ]
+}
+
+/// Homography from `n >= 4` correspondences of normalized coordinates by the DLT on
+/// Hartley-normalized points; `None` for degenerate input (coincident or collinear points).
+/// The result is scaled to unit Frobenius norm.
+///
+/// ```
+/// use nalgebra::{Matrix3, Vector2};
+/// use vofront_geometry::homography::{homography_dlt, transfer};
+/// let h = Matrix3::new(1.0, 0.1, 0.05, -0.05, 0.9, 0.02, 0.01, 0.02, 1.0);
+/// let x1 = [Vector2::new(0.0, 0.0), Vector2::new(0.5, 0.1), Vector2::new(-0.3, 0.4), Vector2::new(0.2, -0.5)];
+/// let x2: Vec<Vector2<f64>> = x1.iter().map(|p| transfer(&h, p)).collect();
+/// let est = homography_dlt(&x1, &x2).unwrap();
+/// assert!((transfer(&est, &Vector2::new(0.1, 0.1)) - transfer(&h, &Vector2::new(0.1, 0.1))).norm() < 1e-9);
+/// ```
+pub fn homography_dlt(x1: &[Vector2<f64>], x2: &[Vector2<f64>]) -> Option<Matrix3<f64>> {
+    if x1.len() < 4 || x1.len() != x2.len() {
+        return None;
+    }
+    let t1 = normalizing_transform(x1)?;
+    let t2 = normalizing_transform(x2)?;
+    let mut ata = SMatrix::<f64, 9, 9>::zeros();
+    for (a, b) in x1.iter().zip(x2) {
+        for row in dlt_rows(&(t1 * a.push(1.0)), &(t2 * b.push(1.0))) {
+            ata += row * row.transpose();
+        }
+    }
+    if !ata.iter().all(|v| v.is_finite()) {
+        return None;
+    }
+    let svd = ata.svd(false, true);
+    let sv = svd.singular_values;
+    // A second (near-)zero singular value means the points do not determine H.
+    if sv[7] <= 1e-10 * sv[0] {
+        return None;
+    }
+    let h = svd.v_t?.row(8).transpose();
+    let hn = Matrix3::from_fn(|r, c| h[3 * r + c]);
+    let t2_inv = t2.try_inverse()?;
+    let hm = t2_inv * hn * t1;
+    let n = hm.norm();
+    (n > 0.0 && n.is_finite()).then(|| hm / n)
+}
+
+/// `H x` dehomogenised.
+#[inline]
+pub fn transfer(h: &Matrix3<f64>, x: &Vector2<f64>) -> Vector2<f64> {
+    let p = h * x.push(1.0);
+    Vector2::new(p.x / p.z, p.y / p.z)
+}
+
+/// Squared transfer errors `(|x2 - H x1|^2, |x1 - H^-1 x2|^2)` in normalized units.
+#[inline]
+pub fn transfer_errors_sq(
+    h: &Matrix3<f64>,
+    h_inv: &Matrix3<f64>,
+    x1: &Vector2<f64>,
+    x2: &Vector2<f64>,
+) -> (f64, f64) {
+    let fwd = (transfer(h, x1) - x2).norm_squared();
+    let bwd = (transfer(h_inv, x2) - x1).norm_squared();
+    (fwd, bwd)
+}
+
+/// Relative tolerance under which two singular values of `H` count as equal.
+const EQUAL_SINGULAR: f64 = 1e-5;
+
+/// Outcome of [`decompose_homography`].
+#[derive(Debug, Clone, PartialEq)]
+pub enum HomographyDecomposition {
+    /// Up to eight `(R, t, n)` with `H ~ R + t n^T` (unit `t`, unit `n` towards the camera
+    /// `n_z > 0`); the chirality test chooses among them.
+    Motion(Vec<(nalgebra::Rotation3<f64>, Vector3<f64>, Vector3<f64>)>),
+    /// All three singular values are equal: `H` is a rotation (no translation or a plane at
+    /// infinity), `R` the nearest rotation.
+    Rotation(nalgebra::Rotation3<f64>),
+    /// Two equal singular values other than the pure-rotation case, or a failed SVD.
+    Degenerate,
+}
+
+/// Decomposes a homography between normalized coordinates (Faugeras' SVD method): with
+/// `H = U diag(d1, d2, d3) V^T`, `s = det U det V`, the candidate motions for `d' = +-d2`.
+pub fn decompose_homography(h: &Matrix3<f64>) -> HomographyDecomposition {
+    use nalgebra::Rotation3;
+    let svd = h.svd(true, true);
+    let (Some(u), Some(v_t)) = (svd.u, svd.v_t) else {
+        return HomographyDecomposition::Degenerate;
+    };
+    let (d1, d2, d3) = (
+        svd.singular_values[0],
+        svd.singular_values[1],
+        svd.singular_values[2],
+    );
+    if !(d1 >= d2 && d2 >= d3 && d3 > 0.0) {
+        return HomographyDecomposition::Degenerate;
+    }
+    let s = u.determinant() * v_t.determinant();
+    let v = v_t.transpose();
+    if d1 / d3 < 1.0 + EQUAL_SINGULAR {
+        return HomographyDecomposition::Rotation(Rotation3::from_matrix(&(u * v_t * s)));
+    }
+    if d1 / d2 < 1.0 + EQUAL_SINGULAR || d2 / d3 < 1.0 + EQUAL_SINGULAR {
+        return HomographyDecomposition::Degenerate;
+    }
+    let (s1, s2, s3) = (d1 * d1, d2 * d2, d3 * d3);
+    let aux1 = ((s1 - s2) / (s1 - s3)).sqrt();
+    let aux3 = ((s2 - s3) / (s1 - s3)).sqrt();
+    let x1 = [aux1, aux1, -aux1, -aux1];
+    let x3 = [aux3, -aux3, aux3, -aux3];
+    let mut out = Vec::with_capacity(8);
+    let mut push = |rp: Matrix3<f64>, tp: Vector3<f64>, np: Vector3<f64>| {
+        let r = u * rp * v_t * s;
+        let t = u * tp;
+        let mut n = v * np;
+        if n.z < 0.0 {
+            n = -n;
+        }
+        let tn = t.norm();
+        if tn > 0.0 {
+            out.push((Rotation3::from_matrix(&r), t / tn, n.normalize()));
+        }
+    };
+    // d' = d2.
+    let st = ((s1 - s2) * (s2 - s3)).sqrt() / ((d1 + d3) * d2);
+    let ct = (s2 + d1 * d3) / ((d1 + d3) * d2);
+    for (i, sign) in [1.0, -1.0, -1.0, 1.0].into_iter().enumerate() {
+        let sth = st * sign;
+        let rp = Matrix3::new(ct, 0.0, -sth, 0.0, 1.0, 0.0, sth, 0.0, ct);
+        push(
+            rp,
+            Vector3::new(x1[i], 0.0, -x3[i]) * (d1 - d3),
+            Vector3::new(x1[i], 0.0, x3[i]),
+        );
+    }
+    // d' = -d2.
+    let sp = ((s1 - s2) * (s2 - s3)).sqrt() / ((d1 - d3) * d2);
+    let cp = (d1 * d3 - s2) / ((d1 - d3) * d2);
+    for (i, sign) in [1.0, -1.0, -1.0, 1.0].into_iter().enumerate() {
+        let sph = sp * sign;
+        let rp = Matrix3::new(cp, 0.0, sph, 0.0, -1.0, 0.0, sph, 0.0, -cp);
+        push(
+            rp,
+            Vector3::new(x1[i], 0.0, x3[i]) * (d1 + d3),
+            Vector3::new(x1[i], 0.0, x3[i]),
+        );
+    }
+    HomographyDecomposition::Motion(out)
+}

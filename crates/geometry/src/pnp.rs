@@ -1,0 +1,317 @@
+//! Absolute pose from 3D-2D correspondences: P3P inside LO-MSAC, then motion-only refinement.
+//!
+//! The refinement minimises `sum_i rho(|u_i - pi(T P_i)|)` over `T = T_cw` with
+//! `pi(X) = K D(X_xy / X_z)` (the full camera model, distortion included), a Huber loss and
+//! the left perturbation `T <- exp(delta) T`, `delta = (rho, phi)`, through
+//! [`vofront_robust::irls()`]. Its `sigma^2 H^-1` covariance of `delta` (metres, radians) is
+//! returned as a quality score.
+
+use nalgebra::{Isometry3, Matrix2x3, Matrix6, Point3, SVector, Vector2, Vector3};
+use vofront_robust::{irls, IrlsConfig, Loss, Problem, Rows, ScaleMode};
+
+use crate::camera::Camera;
+use crate::error::GeometryError;
+use crate::lie::{point_jacobian, retract_left};
+use crate::p3p::p3p;
+use crate::ransac::{ransac, Estimator, RansacConfig};
+
+/// Minimum correspondences: three for P3P plus one to choose among its solutions.
+const MIN_POINTS: usize = 4;
+
+/// Settings of [`solve_pnp_ransac`].
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct PnpConfig {
+    /// Inlier threshold on the reprojection error, pixels.
+    pub threshold_px: f64,
+    /// RANSAC confidence.
+    pub confidence: f64,
+    /// RANSAC iteration cap.
+    pub max_iterations: usize,
+    /// Sampler seed.
+    pub seed: u64,
+    /// Huber IRLS refinement on the inliers.
+    pub refine: bool,
+    /// Residual scale of the Huber loss (pixels); the Huber corner is at `1.345` of it.
+    pub sigma_px: f64,
+    /// Fewer inliers than this is [`GeometryError::NoModel`].
+    pub min_inliers: usize,
+}
+
+impl Default for PnpConfig {
+    fn default() -> Self {
+        Self {
+            threshold_px: 2.0,
+            confidence: 0.999,
+            max_iterations: 1000,
+            seed: 0,
+            refine: true,
+            sigma_px: 1.0,
+            min_inliers: 6,
+        }
+    }
+}
+
+/// Result of [`solve_pnp_ransac`].
+#[derive(Debug, Clone, PartialEq)]
+pub struct PnpResult {
+    /// `T_cw`: world (reference) points into the camera frame.
+    pub pose: Isometry3<f64>,
+    /// Reprojection error under the threshold at the final pose, per correspondence.
+    pub inliers: Vec<bool>,
+    /// Number of `true` in `inliers`.
+    pub inlier_count: usize,
+    /// Covariance of the left increment `delta = (rho, phi)` at the solution (zero when not
+    /// refined).
+    pub covariance: Matrix6<f64>,
+    /// Root mean square reprojection error of the inliers, pixels.
+    pub rmse_px: f64,
+    /// RANSAC iterations.
+    pub iterations: usize,
+}
+
+/// P3P hypotheses scored by the squared reprojection error in normalized coordinates.
+struct PnpEstimator<'a> {
+    world: &'a [Point3<f64>],
+    bearings: &'a [Vector3<f64>],
+    normalized: &'a [Vector2<f64>],
+}
+
+impl Estimator for PnpEstimator<'_> {
+    type Model = Isometry3<f64>;
+
+    fn sample_size(&self) -> usize {
+        3
+    }
+
+    fn len(&self) -> usize {
+        self.world.len()
+    }
+
+    fn fit_minimal(&self, s: &[usize], out: &mut Vec<Isometry3<f64>>) {
+        let w = [self.world[s[0]], self.world[s[1]], self.world[s[2]]];
+        let f = [
+            self.bearings[s[0]],
+            self.bearings[s[1]],
+            self.bearings[s[2]],
+        ];
+        p3p(&w, &f, out);
+    }
+
+    fn fit_nonminimal(&self, _indices: &[usize], out: &mut Vec<Isometry3<f64>>) {
+        // No local optimisation: the final IRLS refinement polishes the best hypothesis.
+        out.clear();
+    }
+
+    fn residual_sq(&self, t: &Isometry3<f64>, i: usize) -> f64 {
+        let x = t * self.world[i];
+        if x.z <= 1e-9 {
+            return f64::INFINITY;
+        }
+        (Vector2::new(x.x / x.z, x.y / x.z) - self.normalized[i]).norm_squared()
+    }
+}
+
+/// Reprojection problem over the inliers.
+struct Reprojection<'a> {
+    camera: &'a Camera,
+    world: &'a [Point3<f64>],
+    pixels: &'a [Vector2<f64>],
+    indices: &'a [usize],
+}
+
+impl Problem<6> for Reprojection<'_> {
+    type State = Isometry3<f64>;
+
+    fn evaluate(&mut self, t: &Isometry3<f64>, rows: &mut Rows<6>) {
+        let k = &self.camera.pinhole;
+        for &i in self.indices {
+            let x = (t * self.world[i]).coords;
+            if x.z <= 1e-9 {
+                continue;
+            }
+            let iz = 1.0 / x.z;
+            let xn = Vector2::new(x.x * iz, x.y * iz);
+            let d = self.camera.distortion.distort_jacobian(&xn);
+            let dxn = Matrix2x3::new(iz, 0.0, -x.x * iz * iz, 0.0, iz, -x.y * iz * iz);
+            let jpix = nalgebra::Matrix2::new(k.fx, 0.0, 0.0, k.fy) * d * dxn;
+            let j = jpix * point_jacobian(&x);
+            let r = self.camera.normalized_to_pixel(&xn) - self.pixels[i];
+            rows.push(j.row(0).transpose(), r.x);
+            rows.push(j.row(1).transpose(), r.y);
+        }
+    }
+
+    fn retract(&self, t: &Isometry3<f64>, delta: &SVector<f64, 6>) -> Isometry3<f64> {
+        retract_left(t, delta)
+    }
+}
+
+/// Pixel reprojection error of correspondence `i` under `T_cw`, infinite behind the camera.
+fn reprojection_px(camera: &Camera, t: &Isometry3<f64>, p: &Point3<f64>, u: &Vector2<f64>) -> f64 {
+    camera
+        .project(&(t * p).coords)
+        .map_or(f64::INFINITY, |q| (q - u).norm())
+}
+
+/// Estimates the camera pose `T_cw` from world points and their observed (distorted) pixels:
+/// P3P in LO-MSAC (threshold `threshold_px / f` in normalized coordinates), an optional prior
+/// pose competing with the hypotheses, then Huber IRLS on the pixel reprojection error of the
+/// inliers.
+///
+/// ```
+/// use nalgebra::{Isometry3, Point3, Vector3};
+/// use vofront_geometry::{Camera, Pinhole};
+/// use vofront_geometry::pnp::{solve_pnp_ransac, PnpConfig};
+/// let cam = Camera::pinhole(Pinhole::new(520.0, 520.0, 320.0, 240.0).unwrap());
+/// let t_cw = Isometry3::new(Vector3::new(0.1, -0.2, 0.3), Vector3::new(0.05, 0.1, -0.02));
+/// let world: Vec<Point3<f64>> = (0..30)
+///     .map(|i| { let f = i as f64; Point3::new((f * 0.7).sin() * 2.0, (f * 1.3).cos(), 4.0 + (f * 0.37).sin()) })
+///     .collect();
+/// let pixels: Vec<_> = world.iter().map(|p| cam.project(&(t_cw * p).coords).unwrap()).collect();
+/// let res = solve_pnp_ransac(&world, &pixels, &cam, None, &PnpConfig::default()).unwrap();
+/// assert!((res.pose.to_homogeneous() - t_cw.to_homogeneous()).norm() < 1e-6);
+/// ```
+pub fn solve_pnp_ransac(
+    points_world: &[Point3<f64>],
+    pixels: &[Vector2<f64>],
+    camera: &Camera,
+    prior: Option<Isometry3<f64>>,
+    cfg: &PnpConfig,
+) -> Result<PnpResult, GeometryError> {
+    camera.validate()?;
+    if points_world.len() != pixels.len() {
+        return Err(GeometryError::LengthMismatch(
+            points_world.len(),
+            pixels.len(),
+        ));
+    }
+    if points_world.len() < MIN_POINTS {
+        return Err(GeometryError::TooFewCorrespondences {
+            got: points_world.len(),
+            need: MIN_POINTS,
+        });
+    }
+    if points_world
+        .iter()
+        .any(|p| !p.iter().all(|v| v.is_finite()))
+        || pixels.iter().any(|p| !p.iter().all(|v| v.is_finite()))
+    {
+        return Err(GeometryError::NonFinite);
+    }
+    if !(cfg.threshold_px > 0.0 && cfg.confidence > 0.0 && cfg.confidence < 1.0) {
+        return Err(GeometryError::InvalidConfig(
+            "threshold_px must be > 0 and confidence in (0, 1)".into(),
+        ));
+    }
+    let mut world = Vec::with_capacity(pixels.len());
+    let mut bearings = Vec::with_capacity(pixels.len());
+    let mut normalized = Vec::with_capacity(pixels.len());
+    let mut index = Vec::with_capacity(pixels.len());
+    for (i, (p, u)) in points_world.iter().zip(pixels).enumerate() {
+        if let Some(x) = camera.pixel_to_normalized(u) {
+            world.push(*p);
+            bearings.push(Vector3::new(x.x, x.y, 1.0).normalize());
+            normalized.push(x);
+            index.push(i);
+        }
+    }
+    if world.len() < MIN_POINTS {
+        return Err(GeometryError::TooFewCorrespondences {
+            got: world.len(),
+            need: MIN_POINTS,
+        });
+    }
+    let spread = world
+        .iter()
+        .map(|p| (p - world[0]).norm())
+        .fold(0.0, f64::max);
+    if spread < 1e-12 {
+        return Err(GeometryError::Degenerate(
+            "all world points are identical".into(),
+        ));
+    }
+    let focal = 0.5 * (camera.pinhole.fx + camera.pinhole.fy);
+    let est = PnpEstimator {
+        world: &world,
+        bearings: &bearings,
+        normalized: &normalized,
+    };
+    let thr = cfg.threshold_px / focal;
+    let rcfg = RansacConfig {
+        threshold: thr,
+        confidence: cfg.confidence,
+        max_iterations: cfg.max_iterations,
+        seed: cfg.seed,
+        lo_rounds: 0,
+        ..RansacConfig::default()
+    };
+    let found = ransac(&est, &rcfg);
+    let iterations = found.as_ref().map_or(0, |r| r.iterations);
+    let mut best = found.map(|r| (r.model, r.score));
+    if let Some(p) = prior.filter(|p| p.to_homogeneous().iter().all(|v| v.is_finite())) {
+        let (score, _) = est.score(&p, thr * thr, f64::INFINITY);
+        if best.as_ref().map_or(true, |b| score < b.1) {
+            best = Some((p, score));
+        }
+    }
+    let (mut pose, _) = best.ok_or(GeometryError::NoModel {
+        best: 0,
+        need: cfg.min_inliers,
+    })?;
+    let mut covariance = Matrix6::zeros();
+    let inliers_of = |t: &Isometry3<f64>| -> Vec<usize> {
+        (0..world.len())
+            .filter(|&k| {
+                reprojection_px(camera, t, &world[k], &pixels[index[k]]) < cfg.threshold_px
+            })
+            .collect()
+    };
+    let mut used = inliers_of(&pose);
+    if used.len() < cfg.min_inliers.max(MIN_POINTS) {
+        return Err(GeometryError::NoModel {
+            best: used.len(),
+            need: cfg.min_inliers.max(MIN_POINTS),
+        });
+    }
+    if cfg.refine {
+        let px: Vec<Vector2<f64>> = index.iter().map(|&i| pixels[i]).collect();
+        let mut problem = Reprojection {
+            camera,
+            world: &world,
+            pixels: &px,
+            indices: &used,
+        };
+        let icfg = IrlsConfig {
+            loss: Loss::Huber(1.345),
+            scale: ScaleMode::Fixed(cfg.sigma_px),
+            max_iterations: 20,
+            ..IrlsConfig::default()
+        };
+        if let Ok(res) = irls(&mut problem, pose, &icfg) {
+            pose = res.state;
+            covariance = res.covariance;
+        }
+        used = inliers_of(&pose);
+    }
+    let mut inliers = vec![false; pixels.len()];
+    let mut sq = 0.0;
+    for &k in &used {
+        inliers[index[k]] = true;
+        sq += reprojection_px(camera, &pose, &world[k], &pixels[index[k]]).powi(2);
+    }
+    let inlier_count = used.len();
+    if inlier_count < cfg.min_inliers.max(MIN_POINTS) {
+        return Err(GeometryError::NoModel {
+            best: inlier_count,
+            need: cfg.min_inliers.max(MIN_POINTS),
+        });
+    }
+    Ok(PnpResult {
+        pose,
+        inliers,
+        inlier_count,
+        covariance,
+        rmse_px: (sq / inlier_count as f64).sqrt(),
+        iterations,
+    })
+}

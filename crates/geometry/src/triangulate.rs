@@ -1,0 +1,150 @@
+//! Two-view triangulation of a point seen along rays `f1` (camera 1) and `f2` (camera 2).
+//!
+//! Frames: the result is in camera 1; `pose = T_21` maps camera-1 points into camera 2,
+//! `X2 = R X1 + t`. The rays are bearings or homogeneous normalized coordinates.
+
+use nalgebra::{Isometry3, Matrix4, Point3, Vector3, Vector4};
+
+/// Linear (DLT) triangulation: the homogeneous `X` minimising `|A X|` with, for each view
+/// `P = [R | t]` and ray `f`, the rows `f_x P_3 - f_z P_1` and `f_y P_3 - f_z P_2`
+/// (each row scaled to unit norm). `None` for a point at infinity or non-finite input.
+///
+/// ```
+/// use nalgebra::{Isometry3, Point3, Vector3};
+/// use vofront_geometry::triangulate::triangulate_dlt;
+/// let t21 = Isometry3::new(Vector3::new(0.3, 0.0, 0.0), Vector3::new(0.0, 0.1, 0.0));
+/// let p = Point3::new(0.2, -0.1, 4.0);
+/// let x = triangulate_dlt(&t21, &p.coords, &(t21 * p).coords).unwrap();
+/// assert!((x - p).norm() < 1e-9);
+/// ```
+pub fn triangulate_dlt(
+    pose: &Isometry3<f64>,
+    f1: &Vector3<f64>,
+    f2: &Vector3<f64>,
+) -> Option<Point3<f64>> {
+    let p2 = pose.to_homogeneous();
+    let p1 = Matrix4::<f64>::identity();
+    let mut ata = Matrix4::zeros();
+    for (p, f) in [(&p1, f1), (&p2, f2)] {
+        for (a, b) in [(f.x, 0), (f.y, 1)] {
+            let row: Vector4<f64> = (p.row(2) * a - p.row(b) * f.z).transpose();
+            let n = row.norm();
+            if !(n > 0.0 && n.is_finite()) {
+                return None;
+            }
+            ata += row * row.transpose() / (n * n);
+        }
+    }
+    let x = ata.svd(false, true).v_t?.row(3).transpose();
+    if x[3].abs() < 1e-12 {
+        return None;
+    }
+    let p = Point3::new(x[0] / x[3], x[1] / x[3], x[2] / x[3]);
+    p.coords.iter().all(|v| v.is_finite()).then_some(p)
+}
+
+/// Depths `(l1, l2)` along the rays (in the ray units) of the closest points of the two rays
+/// `l1 f1` and `c2 + l2 R^T f2` (camera 2 centre `c2 = -R^T t`), or `None` when they are
+/// parallel.
+#[inline]
+pub fn ray_depths(
+    pose: &Isometry3<f64>,
+    f1: &Vector3<f64>,
+    f2: &Vector3<f64>,
+) -> Option<(f64, f64)> {
+    let rt = pose.rotation.inverse();
+    let c2 = -(rt * pose.translation.vector);
+    let d2 = rt * f2;
+    // Minimise |l1 f1 - c2 - l2 d2|^2: [f1.f1, -f1.d2; -f1.d2, d2.d2] [l1 l2] = [f1.c2, -d2.c2].
+    let a = f1.dot(f1);
+    let b = f1.dot(&d2);
+    let c = d2.dot(&d2);
+    let det = a * c - b * b;
+    if det <= 1e-14 * a * c {
+        return None;
+    }
+    let r1 = f1.dot(&c2);
+    let r2 = -d2.dot(&c2);
+    let l1 = (c * r1 + b * r2) / det;
+    let l2 = (b * r1 + a * r2) / det;
+    Some((l1, l2))
+}
+
+/// Inverse-depth-weighted midpoint triangulation (Lee and Civera 2019): with `P1 = l1 f1` and
+/// `P2 = c2 + l2 R^T f2` the closest points of the two rays (camera 1 frame) at distances `d1`,
+/// `d2` from their centres, `X = (P1 / d1 + P2 / d2) / (1 / d1 + 1 / d2)`, which splits the
+/// ray gap into equal angular errors in both views. `None` for parallel rays.
+///
+/// ```
+/// use nalgebra::{Isometry3, Point3, Vector3};
+/// use vofront_geometry::triangulate::triangulate_midpoint;
+/// let t21 = Isometry3::new(Vector3::new(0.3, 0.0, 0.0), Vector3::new(0.0, 0.1, 0.0));
+/// let p = Point3::new(0.2, -0.1, 4.0);
+/// let x = triangulate_midpoint(&t21, &p.coords, &(t21 * p).coords).unwrap();
+/// assert!((x - p).norm() < 1e-9);
+/// ```
+pub fn triangulate_midpoint(
+    pose: &Isometry3<f64>,
+    f1: &Vector3<f64>,
+    f2: &Vector3<f64>,
+) -> Option<Point3<f64>> {
+    let (l1, l2) = ray_depths(pose, f1, f2)?;
+    let rt = pose.rotation.inverse();
+    let c2 = -(rt * pose.translation.vector);
+    let d2 = rt * f2;
+    let (p1, p2) = (f1 * l1, c2 + d2 * l2);
+    let (w1, w2) = (1.0 / (f1.norm() * l1.abs()), 1.0 / (d2.norm() * l2.abs()));
+    let p = if w1.is_finite() && w2.is_finite() {
+        (p1 * w1 + p2 * w2) / (w1 + w2)
+    } else {
+        (p1 + p2) * 0.5
+    };
+    p.iter().all(|v| v.is_finite()).then_some(Point3::from(p))
+}
+
+/// First-order optimal triangulation: both observations (dehomogenised to `(x, y, 1)`) are
+/// moved by the Sampson correction onto the epipolar constraint of `E = [t]_x R`,
+/// `x1' = x1 - c / D (E^T x2)_{1,2}`, `x2' = x2 - c / D (E x1)_{1,2}` with `c = x2^T E x1` and
+/// `D = (E x1)_1^2 + (E x1)_2^2 + (E^T x2)_1^2 + (E^T x2)_2^2`, then intersected by
+/// [`triangulate_midpoint`]. The reprojection errors are then about the Sampson distance even
+/// for nearly parallel rays. `None` for rays with `z <= 0` or parallel rays.
+///
+/// ```
+/// use nalgebra::{Isometry3, Point3, Vector3};
+/// use vofront_geometry::triangulate::triangulate_corrected;
+/// let t21 = Isometry3::new(Vector3::new(0.3, 0.0, 0.0), Vector3::new(0.0, 0.1, 0.0));
+/// let p = Point3::new(0.2, -0.1, 4.0);
+/// let x = triangulate_corrected(&t21, &p.coords, &(t21 * p).coords).unwrap();
+/// assert!((x - p).norm() < 1e-9);
+/// ```
+pub fn triangulate_corrected(
+    pose: &Isometry3<f64>,
+    f1: &Vector3<f64>,
+    f2: &Vector3<f64>,
+) -> Option<Point3<f64>> {
+    if f1.z <= 0.0 || f2.z <= 0.0 {
+        return None;
+    }
+    let x1 = f1 / f1.z;
+    let x2 = f2 / f2.z;
+    let e = crate::lie::hat(&pose.translation.vector) * pose.rotation.to_rotation_matrix().matrix();
+    let l2 = e * x1;
+    let l1 = e.transpose() * x2;
+    let c = x2.dot(&l2);
+    let den = l2.x * l2.x + l2.y * l2.y + l1.x * l1.x + l1.y * l1.y;
+    if den > 0.0 {
+        let k = c / den;
+        let y1 = Vector3::new(x1.x - k * l1.x, x1.y - k * l1.y, 1.0);
+        let y2 = Vector3::new(x2.x - k * l2.x, x2.y - k * l2.y, 1.0);
+        triangulate_midpoint(pose, &y1, &y2)
+    } else {
+        triangulate_midpoint(pose, &x1, &x2)
+    }
+}
+
+/// Parallax angle in degrees at `p` (camera-1 frame) between the rays from the two camera
+/// centres.
+pub fn parallax_deg(pose: &Isometry3<f64>, p: &Point3<f64>) -> f64 {
+    let c2 = -(pose.rotation.inverse() * pose.translation.vector);
+    crate::lie::direction_angle_deg(&p.coords, &(p.coords - c2))
+}
