@@ -8,9 +8,17 @@
 //! - [`features`]: ORB detection, description and Hamming matching;
 //! - [`direct`]: photometric alignment and KLT;
 //! - [`fixtures`]: synthetic scenes with exact ground truth.
+#![warn(missing_docs)]
+
 pub mod dataset;
+pub mod draw;
 pub mod eval;
+pub mod input;
+pub mod odometry;
+pub mod pipeline;
+pub mod presets;
 pub mod trajectory;
+
 pub use vofront_direct as direct;
 pub use vofront_features as features;
 pub use vofront_fixtures as fixtures;

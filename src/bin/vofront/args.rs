@@ -1,0 +1,223 @@
+//! Command-line flags. Every flag named here is public interface: add, don't rename.
+
+use std::path::PathBuf;
+
+use clap::{Args, Parser, Subcommand, ValueEnum};
+use vofront::geometry::camera::{Camera, Distortion, Pinhole};
+use vofront::presets::{camera_preset, PRESETS};
+
+/// vofront: visual-odometry front-end. Without a command, runs the synthetic demo.
+#[derive(Debug, Parser)]
+#[command(name = "vofront", version, about, long_about = None)]
+pub struct Cli {
+    /// What to do; omitted: render a synthetic scene pair, run every method, print the errors.
+    #[command(subcommand)]
+    pub command: Option<Command>,
+}
+
+/// The subcommands.
+#[derive(Debug, Subcommand)]
+pub enum Command {
+    /// Relative pose of two frames by features and by direct alignment, with pictures.
+    TwoView(TwoViewArgs),
+    /// Robust relative pose from given pixel correspondences (CSV x1,y1,x2,y2).
+    Relpose(RelposeArgs),
+    /// Track a whole sequence (TUM RGB-D, KITTI or EuRoC folder) into a TUM trajectory.
+    /// Exit code 3: tracking was lost for good (partial results are still written).
+    Odometry(OdometryArgs),
+    /// Absolute and relative trajectory errors of an estimate against ground truth (TUM files).
+    Eval(EvalArgs),
+}
+
+/// Intrinsics and distortion: a preset, then individual flags override it.
+#[derive(Debug, Clone, Args)]
+pub struct CameraArgs {
+    /// Published calibration: tum-ros, tum-fr1, tum-fr2, tum-fr3, kitti-00-02, kitti-03,
+    /// kitti-04-12, euroc.
+    #[arg(long, value_name = "PRESET")]
+    pub camera: Option<String>,
+    /// Focal length along x, pixels [default: 525].
+    #[arg(long)]
+    pub fx: Option<f64>,
+    /// Focal length along y, pixels [default: 525].
+    #[arg(long)]
+    pub fy: Option<f64>,
+    /// Principal point x, pixels [default: 319.5].
+    #[arg(long)]
+    pub cx: Option<f64>,
+    /// Principal point y, pixels [default: 239.5].
+    #[arg(long)]
+    pub cy: Option<f64>,
+    /// Radial-tangential distortion k1,k2,p1,p2,k3 (fewer values: the rest are 0).
+    #[arg(long, value_name = "k1,k2,p1,p2,k3", value_delimiter = ',', num_args = 1..=5, allow_negative_numbers = true)]
+    pub dist: Option<Vec<f64>>,
+}
+
+impl CameraArgs {
+    /// True when any camera flag was given on the command line.
+    pub fn is_given(&self) -> bool {
+        self.camera.is_some()
+            || self.fx.is_some()
+            || self.fy.is_some()
+            || self.cx.is_some()
+            || self.cy.is_some()
+            || self.dist.is_some()
+    }
+
+    /// The camera these flags describe.
+    pub fn camera(&self) -> Result<Camera, String> {
+        let base = match &self.camera {
+            Some(name) => camera_preset(name).map(|p| p.camera).ok_or_else(|| {
+                let names: Vec<&str> = PRESETS.iter().map(|p| p.name).collect();
+                format!(
+                    "unknown camera preset '{name}' (known: {})",
+                    names.join(", ")
+                )
+            })?,
+            None => Camera::pinhole(Pinhole {
+                fx: 525.0,
+                fy: 525.0,
+                cx: 319.5,
+                cy: 239.5,
+            }),
+        };
+        let k = base.pinhole;
+        let pinhole = Pinhole::new(
+            self.fx.unwrap_or(k.fx),
+            self.fy.unwrap_or(k.fy),
+            self.cx.unwrap_or(k.cx),
+            self.cy.unwrap_or(k.cy),
+        )
+        .map_err(|e| e.to_string())?;
+        let distortion = match &self.dist {
+            Some(d) => {
+                let mut all = [0.0; 5];
+                all[..d.len()].copy_from_slice(d);
+                Distortion::from_array(all)
+            }
+            None => base.distortion,
+        };
+        let camera = Camera::new(pinhole, distortion);
+        camera.validate().map_err(|e| e.to_string())?;
+        Ok(camera)
+    }
+}
+
+/// Which estimators `two-view` runs.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
+pub enum Method {
+    /// ORB + essential/homography RANSAC + refinement.
+    Feature,
+    /// Direct 2D translation, plus SE(3) when `--depth1` is given.
+    Direct,
+    /// Both.
+    All,
+}
+
+/// Flags of `vofront two-view`.
+#[derive(Debug, Args)]
+pub struct TwoViewArgs {
+    /// First frame (PNG or JPEG; colour is converted to grey).
+    pub img1: PathBuf,
+    /// Second frame.
+    pub img2: PathBuf,
+    /// Camera.
+    #[command(flatten)]
+    pub camera: CameraArgs,
+    /// Depth map of the first frame (16-bit PNG); enables SE(3) direct alignment.
+    #[arg(long, value_name = "PNG")]
+    pub depth1: Option<PathBuf>,
+    /// Depth units per metre in `--depth1`.
+    #[arg(long, default_value_t = 5000.0)]
+    pub depth_scale: f64,
+    /// Which estimators to run.
+    #[arg(long, value_enum, default_value_t = Method::All)]
+    pub method: Method,
+    /// ORB feature budget per image.
+    #[arg(long, default_value_t = 2000)]
+    pub features: usize,
+    /// Print one JSON object instead of text.
+    #[arg(long)]
+    pub json: bool,
+    /// Write pictures (keypoints, matches, differences, residuals) into this folder.
+    #[arg(long, value_name = "DIR")]
+    pub out_dir: Option<PathBuf>,
+}
+
+/// Flags of `vofront relpose`.
+#[derive(Debug, Args)]
+pub struct RelposeArgs {
+    /// CSV with columns x1,y1,x2,y2 (pixels); extra columns ignored, header optional.
+    pub matches: PathBuf,
+    /// Camera.
+    #[command(flatten)]
+    pub camera: CameraArgs,
+}
+
+/// Alignment of the estimate before the errors are computed.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
+pub enum AlignArg {
+    /// Rigid Umeyama alignment (evo `--align`).
+    Se3,
+    /// Similarity alignment, for monocular estimates (evo `--align --correct_scale`).
+    Sim3,
+    /// Compare as given.
+    None,
+}
+
+/// Flags of `vofront eval`.
+#[derive(Debug, Args)]
+pub struct EvalArgs {
+    /// Ground-truth trajectory, TUM format (`timestamp tx ty tz qx qy qz qw`, camera-to-world).
+    pub gt: PathBuf,
+    /// Estimated trajectory, TUM format.
+    pub est: PathBuf,
+    /// Alignment before computing errors.
+    #[arg(long, value_enum, default_value_t = AlignArg::Se3)]
+    pub align: AlignArg,
+    /// Largest timestamp difference for associating poses, seconds.
+    #[arg(long, default_value_t = 0.01)]
+    pub max_dt: f64,
+    /// Print one JSON object instead of text.
+    #[arg(long)]
+    pub json: bool,
+    /// Write a plot (top view of both trajectories, error over time) to this PNG.
+    #[arg(long, value_name = "PNG")]
+    pub plot: Option<PathBuf>,
+}
+
+/// Sequence trackers.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
+pub enum OdometryMethod {
+    /// RGB-D photometric SE(3) alignment to keyframes.
+    Direct,
+    /// RGB-D: ORB matched to keyframes with depth, PnP RANSAC and robust refinement.
+    FeatureRgbd,
+    /// Monocular ORB: two-view initialisation, triangulated points, PnP; arbitrary scale.
+    Feature,
+}
+
+/// Flags of `vofront odometry`.
+#[derive(Debug, Args)]
+pub struct OdometryArgs {
+    /// Dataset folder: TUM RGB-D (rgb.txt), KITTI odometry (image_0/, times.txt) or EuRoC (mav0/).
+    pub dataset: PathBuf,
+    /// Tracker.
+    #[arg(long, value_enum, default_value_t = OdometryMethod::Direct)]
+    pub method: OdometryMethod,
+    /// Camera; without flags: the dataset's calibration, else a TUM preset from the folder name.
+    #[command(flatten)]
+    pub camera: CameraArgs,
+    /// Trajectory output, TUM format (camera-to-world, first frame at the origin).
+    #[arg(long, default_value = "trajectory.txt")]
+    pub out: PathBuf,
+    /// Per-frame CSV: status, keyframe, inliers, inlier ratio, rmse, iterations, covariance trace, ms.
+    #[arg(long, value_name = "CSV")]
+    pub metrics: Option<PathBuf>,
+    /// Plot of the trajectory against the ground truth (needs ground truth in the dataset).
+    #[arg(long, value_name = "PNG")]
+    pub plot: Option<PathBuf>,
+    /// Track only the first N frames.
+    #[arg(long, value_name = "N")]
+    pub max_frames: Option<usize>,
+}

@@ -1,0 +1,124 @@
+//! Reading the files a user gives: images, depth maps and correspondence lists, with errors
+//! that name the file.
+
+use std::path::{Path, PathBuf};
+
+use image::{GrayImage, ImageBuffer, Luma};
+use thiserror::Error;
+
+/// A metric depth map: metres per pixel, 0 where unknown.
+pub type DepthMap = ImageBuffer<Luma<f32>, Vec<f32>>;
+
+/// A file could not be used.
+#[derive(Debug, Error)]
+pub enum InputError {
+    /// The file does not exist or cannot be read.
+    #[error("cannot read {path}: {source}")]
+    Read {
+        /// The file.
+        path: PathBuf,
+        /// Why.
+        source: std::io::Error,
+    },
+    /// The file is not an image in a supported format (PNG, JPEG).
+    #[error("{path}: not a supported image ({reason})")]
+    Decode {
+        /// The file.
+        path: PathBuf,
+        /// What the decoder said.
+        reason: String,
+    },
+    /// A depth map that is not single-channel 16-bit or 8-bit.
+    #[error("{path}: depth must be a single-channel 16-bit (or 8-bit) image")]
+    DepthFormat {
+        /// The file.
+        path: PathBuf,
+    },
+    /// A line of a text file that cannot be parsed.
+    #[error("{path}:{line}: {reason}")]
+    Parse {
+        /// The file.
+        path: PathBuf,
+        /// 1-based line number.
+        line: usize,
+        /// What is wrong.
+        reason: String,
+    },
+}
+
+fn open(path: &Path) -> Result<image::DynamicImage, InputError> {
+    let bytes = std::fs::read(path).map_err(|source| InputError::Read {
+        path: path.into(),
+        source,
+    })?;
+    image::load_from_memory(&bytes).map_err(|e| InputError::Decode {
+        path: path.into(),
+        reason: e.to_string(),
+    })
+}
+
+/// Loads any supported image as 8-bit grey (colour is converted with Rec. 601 luma).
+pub fn load_gray(path: &Path) -> Result<GrayImage, InputError> {
+    Ok(open(path)?.into_luma8())
+}
+
+/// Loads a depth PNG and divides by `scale` (5000 per metre for TUM) into metres.
+pub fn load_depth(path: &Path, scale: f64) -> Result<DepthMap, InputError> {
+    let img = open(path)?;
+    let raw = match img {
+        image::DynamicImage::ImageLuma16(d) => d,
+        image::DynamicImage::ImageLuma8(_) => img.into_luma16(),
+        _ => return Err(InputError::DepthFormat { path: path.into() }),
+    };
+    let metres = raw.pixels().map(|p| (p[0] as f64 / scale) as f32).collect();
+    Ok(DepthMap::from_raw(raw.width(), raw.height(), metres)
+        .expect("same size as the decoded image"))
+}
+
+/// Pixel correspondences `(x1, y1) <-> (x2, y2)`.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct Correspondences {
+    /// Points in image 1, pixels.
+    pub x1: Vec<nalgebra::Vector2<f64>>,
+    /// Matching points in image 2, pixels.
+    pub x2: Vec<nalgebra::Vector2<f64>>,
+}
+
+/// Reads a CSV of correspondences: columns `x1,y1,x2,y2`, further columns ignored, an optional
+/// header line (any first line whose first field is not a number), `#` comments skipped.
+pub fn load_correspondences(path: &Path) -> Result<Correspondences, InputError> {
+    let text = std::fs::read_to_string(path).map_err(|source| InputError::Read {
+        path: path.into(),
+        source,
+    })?;
+    let mut out = Correspondences::default();
+    let mut header_allowed = true;
+    for (i, line) in text.lines().enumerate() {
+        let line = line.trim();
+        if line.is_empty() || line.starts_with('#') {
+            continue;
+        }
+        let fields: Vec<&str> = line
+            .split([',', ' ', '\t', ';'])
+            .filter(|f| !f.is_empty())
+            .collect();
+        let numbers: Result<Vec<f64>, _> =
+            fields.iter().take(4).map(|f| f.parse::<f64>()).collect();
+        match numbers {
+            Ok(v) if v.len() == 4 => {
+                out.x1.push(nalgebra::Vector2::new(v[0], v[1]));
+                out.x2.push(nalgebra::Vector2::new(v[2], v[3]));
+            }
+            _ if header_allowed && fields.first().is_some_and(|f| f.parse::<f64>().is_err()) => {}
+            _ => {
+                return Err(InputError::Parse {
+                    path: path.into(),
+                    line: i + 1,
+                    reason: "expected four numbers x1,y1,x2,y2".into(),
+                })
+            }
+        }
+        header_allowed = false;
+    }
+    Ok(out)
+}

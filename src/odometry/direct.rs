@@ -1,0 +1,220 @@
+//! RGB-D direct tracker: each frame is aligned photometrically to the keyframe.
+//!
+//! With the keyframe pose `T_w_kf` and the constant-velocity guess `T_wc'`, the alignment
+//! starts from `T_cur_kf = T_wc'^-1 T_w_kf` and minimises
+//! `I_cur(pi(K T_cur_kf pi^-1(p, d_p))) - (a I_kf(p) + b)` over the keyframe's selected pixels
+//! ([`vofront_direct::Se3Reference`]); the frame's pose is then `T_wc = T_w_kf T_cur_kf^-1`.
+//! A result is rejected (frame lost) when the alignment fails, when too few residuals are
+//! inliers, or when the brightness gain left a plausible range (a flat image can be "explained"
+//! by `a = 0`).
+
+use std::time::Instant;
+
+use nalgebra::Isometry3;
+use vofront_direct::{Plane, RgbdFrame, Se3Config, Se3Reference};
+use vofront_geometry::Camera;
+
+use super::keyframe::{KeyframePolicy, KeyframeView};
+use super::motion::ConstantVelocity;
+use super::{FrameEstimate, FrameQuality, TrackStatus, Tracker};
+use crate::dataset::Frame;
+
+/// Settings of [`DirectTracker`].
+#[derive(Debug, Clone)]
+pub struct DirectTrackerConfig {
+    /// SE(3) alignment settings (affine brightness on by default).
+    pub se3: Se3Config,
+    /// When to take a new keyframe.
+    pub keyframe: KeyframePolicy,
+    /// Smallest inlier ratio for a frame to count as tracked.
+    pub min_inlier_ratio: f64,
+    /// Accepted brightness gain range `[1/g, g]`.
+    pub max_gain: f64,
+}
+
+impl Default for DirectTrackerConfig {
+    fn default() -> Self {
+        Self {
+            se3: Se3Config::default(),
+            keyframe: KeyframePolicy::default(),
+            min_inlier_ratio: 0.4,
+            max_gain: 2.0,
+        }
+    }
+}
+
+struct Keyframe {
+    reference: Se3Reference,
+    t_wc: Isometry3<f64>,
+    median_depth: f64,
+    selected: usize,
+    first_residual: Option<f64>,
+}
+
+/// Frame-to-keyframe SE(3) photometric tracker for RGB-D sequences.
+pub struct DirectTracker {
+    cfg: DirectTrackerConfig,
+    camera: Camera,
+    keyframe: Option<Keyframe>,
+    motion: ConstantVelocity,
+    started: bool,
+}
+
+fn median_depth(depth: &Plane) -> f64 {
+    let mut valid: Vec<f64> = depth
+        .data
+        .iter()
+        .filter(|z| **z > 0.0 && z.is_finite())
+        .map(|&z| z as f64)
+        .collect();
+    crate::robust::median_in_place(&mut valid).unwrap_or(1.0)
+}
+
+impl DirectTracker {
+    /// A tracker for frames of `camera` (with lens distortion, frames are undistorted once).
+    pub fn new(camera: Camera, cfg: DirectTrackerConfig) -> Self {
+        Self {
+            cfg,
+            camera,
+            keyframe: None,
+            motion: ConstantVelocity::default(),
+            started: false,
+        }
+    }
+
+    fn make_keyframe(&self, frame: &Frame, t_wc: Isometry3<f64>) -> Result<Keyframe, String> {
+        let depth = frame.depth.as_ref().ok_or("frame has no depth")?;
+        let depth = Plane::from_gray_f32(depth);
+        let rgbd = RgbdFrame::new(Plane::from_gray8(&frame.image), depth, &self.camera)
+            .map_err(|e| e.to_string())?;
+        let reference = Se3Reference::new(&rgbd, &self.cfg.se3).map_err(|e| e.to_string())?;
+        let selected = reference.selected().first().copied().unwrap_or(0);
+        Ok(Keyframe {
+            reference,
+            t_wc,
+            median_depth: median_depth(&rgbd.depth),
+            selected,
+            first_residual: None,
+        })
+    }
+
+    /// Starts over at `t_wc` from this frame; `Lost` if the frame cannot be a keyframe.
+    fn restart(
+        &mut self,
+        frame: &Frame,
+        t_wc: Isometry3<f64>,
+        why: String,
+        start: Instant,
+    ) -> FrameEstimate {
+        let status = if self.started {
+            TrackStatus::Reinitialised
+        } else {
+            TrackStatus::Ok
+        };
+        match self.make_keyframe(frame, t_wc) {
+            Ok(kf) => {
+                self.keyframe = Some(kf);
+                self.started = true;
+                self.motion.update(t_wc);
+                // The last velocity led to a failure: do not trust it for the next frame.
+                self.motion.reset_velocity();
+                let quality = FrameQuality {
+                    keyframe: true,
+                    inlier_ratio: 1.0,
+                    ms: ms(start),
+                    ..FrameQuality::default()
+                };
+                let message = (status == TrackStatus::Reinitialised).then_some(why);
+                FrameEstimate {
+                    pose_wc: t_wc,
+                    status,
+                    quality,
+                    message,
+                }
+            }
+            Err(e) => {
+                self.keyframe = None;
+                self.motion.reset_velocity();
+                let quality = FrameQuality {
+                    ms: ms(start),
+                    ..FrameQuality::default()
+                };
+                FrameEstimate {
+                    pose_wc: t_wc,
+                    status: TrackStatus::Lost,
+                    quality,
+                    message: Some(format!("{why}; {e}")),
+                }
+            }
+        }
+    }
+}
+
+fn ms(start: Instant) -> f64 {
+    start.elapsed().as_secs_f64() * 1e3
+}
+
+impl Tracker for DirectTracker {
+    fn track(&mut self, frame: &Frame) -> FrameEstimate {
+        let start = Instant::now();
+        let predicted = self.motion.predict().unwrap_or_else(Isometry3::identity);
+        let Some(kf) = &mut self.keyframe else {
+            return self.restart(frame, predicted, "no keyframe".into(), start);
+        };
+        let prior = predicted.inverse() * kf.t_wc;
+        let current = Plane::from_gray8(&frame.image);
+        let fit = kf
+            .reference
+            .align(&current, &prior, &self.cfg.se3)
+            .map_err(|e| e.to_string())
+            .and_then(|r| {
+                let gain_ok = r.a > 1.0 / self.cfg.max_gain && r.a < self.cfg.max_gain;
+                if r.inlier_ratio < self.cfg.min_inlier_ratio {
+                    Err(format!(
+                        "inlier ratio {:.2} below {:.2}",
+                        r.inlier_ratio, self.cfg.min_inlier_ratio
+                    ))
+                } else if !gain_ok {
+                    Err(format!("implausible brightness gain {:.2}", r.a))
+                } else {
+                    Ok(r)
+                }
+            });
+        let fit = match fit {
+            Ok(fit) => fit,
+            Err(why) => return self.restart(frame, predicted, why, start),
+        };
+        let t_wc = kf.t_wc * fit.pose.inverse();
+        self.motion.update(t_wc);
+        let first_residual = *kf.first_residual.get_or_insert(fit.rmse);
+        let view = KeyframeView {
+            t_cur_kf: fit.pose,
+            median_depth: kf.median_depth,
+            overlap: fit.inlier_ratio * fit.valid_pixels as f64 / kf.selected.max(1) as f64,
+            residual: fit.rmse,
+            first_residual,
+        };
+        let mut keyframe = false;
+        if self.cfg.keyframe.needs_keyframe(&view) {
+            if let Ok(new_kf) = self.make_keyframe(frame, t_wc) {
+                self.keyframe = Some(new_kf);
+                keyframe = true;
+            }
+        }
+        let quality = FrameQuality {
+            inliers: (fit.inlier_ratio * fit.valid_pixels as f64).round() as usize,
+            inlier_ratio: fit.inlier_ratio,
+            rmse: fit.rmse,
+            iterations: fit.iterations.iter().sum(),
+            covariance_trace: fit.covariance.trace(),
+            keyframe,
+            ms: ms(start),
+        };
+        FrameEstimate {
+            pose_wc: t_wc,
+            status: TrackStatus::Ok,
+            quality,
+            message: None,
+        }
+    }
+}

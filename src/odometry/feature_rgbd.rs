@@ -1,0 +1,322 @@
+//! RGB-D feature tracker: ORB matched to the keyframe, whose features carry 3D points from its
+//! depth map, then PnP RANSAC with robust motion-only refinement.
+//!
+//! The keyframe's points `P_kf` (metres, keyframe camera frame) are predicted in the current
+//! image at `pi(K T_cur_kf' P_kf)` with the constant-velocity guess `T_cur_kf'`; each is
+//! matched only to current features within `window_px` of that prediction (brute force when
+//! too few are found, after a jump), and PnP estimates `T_cur_kf` from the matches, so that
+//! `T_wc = T_w_kf T_cur_kf^-1`.
+
+use std::time::Instant;
+
+use nalgebra::{Isometry3, Point3, Vector2};
+use vofront_features::{
+    match_descriptors, match_windowed, Features, Match, MatchConfig, Orb, OrbConfig,
+};
+use vofront_geometry::pnp::{solve_pnp_ransac, PnpConfig};
+use vofront_geometry::Camera;
+
+use super::keyframe::{KeyframePolicy, KeyframeView};
+use super::motion::ConstantVelocity;
+use super::{FrameEstimate, FrameQuality, TrackStatus, Tracker};
+use crate::dataset::Frame;
+
+/// Settings of [`FeatureRgbdTracker`].
+#[derive(Debug, Clone)]
+pub struct FeatureRgbdConfig {
+    /// ORB settings (1000 features by default, enough for tracking).
+    pub orb: OrbConfig,
+    /// Matching filters.
+    pub matching: MatchConfig,
+    /// Search radius around each predicted position, pixels.
+    pub window_px: f32,
+    /// PnP RANSAC and refinement.
+    pub pnp: PnpConfig,
+    /// When to take a new keyframe.
+    pub keyframe: KeyframePolicy,
+    /// Fewest PnP inliers for a frame to count as tracked.
+    pub min_inliers: usize,
+    /// Depth range accepted for keyframe points, metres.
+    pub depth_range: (f64, f64),
+}
+
+impl Default for FeatureRgbdConfig {
+    fn default() -> Self {
+        Self {
+            orb: OrbConfig {
+                n_features: 1000,
+                ..OrbConfig::default()
+            },
+            matching: MatchConfig {
+                ratio: Some(0.8),
+                ..MatchConfig::default()
+            },
+            window_px: 24.0,
+            pnp: PnpConfig::default(),
+            keyframe: KeyframePolicy::default(),
+            min_inliers: 25,
+            depth_range: (0.1, 12.0),
+        }
+    }
+}
+
+struct Keyframe {
+    features: Features,
+    points: Vec<Option<Point3<f64>>>,
+    with_depth: usize,
+    t_wc: Isometry3<f64>,
+    median_depth: f64,
+    first_residual: Option<f64>,
+}
+
+/// Frame-to-keyframe ORB + PnP tracker for RGB-D sequences.
+pub struct FeatureRgbdTracker {
+    cfg: FeatureRgbdConfig,
+    orb: Orb,
+    camera: Camera,
+    keyframe: Option<Keyframe>,
+    motion: ConstantVelocity,
+    started: bool,
+}
+
+fn ms(start: Instant) -> f64 {
+    start.elapsed().as_secs_f64() * 1e3
+}
+
+impl FeatureRgbdTracker {
+    /// A tracker for frames of `camera`; fails on an invalid ORB configuration.
+    pub fn new(
+        camera: Camera,
+        cfg: FeatureRgbdConfig,
+    ) -> Result<Self, vofront_features::FeatureError> {
+        let orb = Orb::new(cfg.orb.clone())?;
+        Ok(Self {
+            cfg,
+            orb,
+            camera,
+            keyframe: None,
+            motion: ConstantVelocity::default(),
+            started: false,
+        })
+    }
+
+    fn make_keyframe(
+        &self,
+        frame: &Frame,
+        features: Features,
+        t_wc: Isometry3<f64>,
+    ) -> Result<Keyframe, String> {
+        let depth = frame.depth.as_ref().ok_or("frame has no depth")?;
+        let (lo, hi) = self.cfg.depth_range;
+        let points: Vec<Option<Point3<f64>>> = (0..features.len())
+            .map(|i| {
+                let (x, y) = (features.xs[i].round(), features.ys[i].round());
+                let z = depth
+                    .get_pixel_checked(x as u32, y as u32)
+                    .map_or(0.0, |d| d[0] as f64);
+                if !(z > lo && z < hi) {
+                    return None;
+                }
+                let n = self.camera.pixel_to_normalized(&Vector2::new(
+                    features.xs[i] as f64,
+                    features.ys[i] as f64,
+                ))?;
+                Some(Point3::new(n.x * z, n.y * z, z))
+            })
+            .collect();
+        let mut depths: Vec<f64> = points.iter().flatten().map(|p| p.z).collect();
+        let with_depth = depths.len();
+        if with_depth < self.cfg.min_inliers {
+            return Err(format!(
+                "only {with_depth} features with depth, {} needed",
+                self.cfg.min_inliers
+            ));
+        }
+        let median_depth = crate::robust::median_in_place(&mut depths).unwrap_or(1.0);
+        Ok(Keyframe {
+            features,
+            points,
+            with_depth,
+            t_wc,
+            median_depth,
+            first_residual: None,
+        })
+    }
+
+    fn restart(
+        &mut self,
+        frame: &Frame,
+        features: Features,
+        t_wc: Isometry3<f64>,
+        why: String,
+        start: Instant,
+    ) -> FrameEstimate {
+        let status = if self.started {
+            TrackStatus::Reinitialised
+        } else {
+            TrackStatus::Ok
+        };
+        match self.make_keyframe(frame, features, t_wc) {
+            Ok(kf) => {
+                self.keyframe = Some(kf);
+                self.started = true;
+                self.motion.update(t_wc);
+                self.motion.reset_velocity();
+                let quality = FrameQuality {
+                    keyframe: true,
+                    inlier_ratio: 1.0,
+                    ms: ms(start),
+                    ..FrameQuality::default()
+                };
+                let message = (status == TrackStatus::Reinitialised).then_some(why);
+                FrameEstimate {
+                    pose_wc: t_wc,
+                    status,
+                    quality,
+                    message,
+                }
+            }
+            Err(e) => {
+                self.keyframe = None;
+                self.motion.reset_velocity();
+                let quality = FrameQuality {
+                    ms: ms(start),
+                    ..FrameQuality::default()
+                };
+                FrameEstimate {
+                    pose_wc: t_wc,
+                    status: TrackStatus::Lost,
+                    quality,
+                    message: Some(format!("{why}; {e}")),
+                }
+            }
+        }
+    }
+}
+
+/// Keyframe-to-current matches: windowed around the predictions `pi(K T_cur_kf' P_kf)`,
+/// brute force (restricted to keyframe features with depth) when too few are found.
+fn keyframe_matches(
+    cfg: &FeatureRgbdConfig,
+    camera: &Camera,
+    kf: &Keyframe,
+    current: &Features,
+    prior: &Isometry3<f64>,
+) -> Vec<Match> {
+    let predicted: Vec<(f32, f32)> = kf
+        .points
+        .iter()
+        .map(|p| {
+            p.and_then(|p| camera.project(&(prior * p).coords))
+                .map_or((f32::NAN, f32::NAN), |u| (u.x as f32, u.y as f32))
+        })
+        .collect();
+    let windowed = match_windowed(
+        &kf.features,
+        &predicted,
+        current,
+        cfg.window_px,
+        Some(1),
+        &cfg.matching,
+    )
+    .unwrap_or_default();
+    if windowed.len() >= 2 * cfg.min_inliers {
+        return windowed;
+    }
+    match_descriptors(
+        &kf.features.descriptors,
+        &current.descriptors,
+        &cfg.matching,
+    )
+    .into_iter()
+    .filter(|m| kf.points[m.query as usize].is_some())
+    .collect()
+}
+
+impl Tracker for FeatureRgbdTracker {
+    fn track(&mut self, frame: &Frame) -> FrameEstimate {
+        let start = Instant::now();
+        let predicted = self.motion.predict().unwrap_or_else(Isometry3::identity);
+        let features = match self.orb.detect_and_describe(&frame.image) {
+            Ok(f) => f,
+            Err(e) => {
+                return self.restart(frame, Features::default(), predicted, e.to_string(), start)
+            }
+        };
+        let Some(kf) = self.keyframe.as_mut() else {
+            return self.restart(frame, features, predicted, "no keyframe".into(), start);
+        };
+        let prior = predicted.inverse() * kf.t_wc;
+        let matches = keyframe_matches(&self.cfg, &self.camera, kf, &features, &prior);
+        let world: Vec<Point3<f64>> = matches
+            .iter()
+            .filter_map(|m| kf.points[m.query as usize])
+            .collect();
+        let pixels: Vec<Vector2<f64>> = matches
+            .iter()
+            .map(|m| {
+                Vector2::new(
+                    features.xs[m.train as usize] as f64,
+                    features.ys[m.train as usize] as f64,
+                )
+            })
+            .collect();
+        let fit = solve_pnp_ransac(&world, &pixels, &self.camera, Some(prior), &self.cfg.pnp)
+            .map_err(|e| e.to_string())
+            .and_then(|r| {
+                if r.inlier_count >= self.cfg.min_inliers {
+                    Ok(r)
+                } else {
+                    Err(format!(
+                        "{} PnP inliers, {} needed",
+                        r.inlier_count, self.cfg.min_inliers
+                    ))
+                }
+            });
+        let fit = match fit {
+            Ok(fit) => fit,
+            Err(why) => return self.restart(frame, features, predicted, why, start),
+        };
+        let t_wc = kf.t_wc * fit.pose.inverse();
+        let first_residual = *kf.first_residual.get_or_insert(fit.rmse_px);
+        let view = KeyframeView {
+            t_cur_kf: fit.pose,
+            median_depth: kf.median_depth,
+            overlap: fit.inlier_count as f64 / kf.with_depth.max(1) as f64,
+            residual: fit.rmse_px,
+            first_residual,
+        };
+        self.motion.update(t_wc);
+        let quality = FrameQuality {
+            inliers: fit.inlier_count,
+            inlier_ratio: fit.inlier_count as f64 / matches.len().max(1) as f64,
+            rmse: fit.rmse_px,
+            iterations: fit.iterations,
+            covariance_trace: fit.covariance.trace(),
+            keyframe: false,
+            ms: 0.0,
+        };
+        let keyframe = if self.cfg.keyframe.needs_keyframe(&view) {
+            match self.make_keyframe(frame, features, t_wc) {
+                Ok(new_kf) => {
+                    self.keyframe = Some(new_kf);
+                    true
+                }
+                Err(_) => false,
+            }
+        } else {
+            false
+        };
+        let quality = FrameQuality {
+            keyframe,
+            ms: ms(start),
+            ..quality
+        };
+        FrameEstimate {
+            pose_wc: t_wc,
+            status: TrackStatus::Ok,
+            quality,
+            message: None,
+        }
+    }
+}

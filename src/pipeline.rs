@@ -1,0 +1,154 @@
+//! One obvious entry point per job, on the images a user has.
+//!
+//! - [`FeatureTracker::relative_pose`]: ORB on both frames, kNN-2 Hamming matching with the
+//!   ratio test, essential / homography RANSAC with model selection, chirality and refinement;
+//!   the pose `T_21` has a unit translation (monocular scale is unknown).
+//! - Direct alignment lives in [`crate::direct`]: `align_translation(&Plane, &Plane, &cfg)` and
+//!   `align_se3(&RgbdFrame, &Plane, &prior, &cfg)`; [`gray_plane`] and [`depth_plane`] convert
+//!   the `image` crate's buffers into its `Plane`.
+
+use std::time::Instant;
+
+use image::GrayImage;
+use thiserror::Error;
+use vofront_direct::{DirectError, Plane};
+use vofront_features::{
+    match_descriptors, FeatureError, Features, Match, MatchConfig, Orb, OrbConfig,
+};
+use vofront_geometry::{
+    estimate_relative_pose, Camera, GeometryError, RelativePose, RelativePoseConfig,
+};
+
+use crate::input::DepthMap;
+
+/// Anything the facade's pipelines can fail with.
+#[derive(Debug, Error)]
+pub enum VoError {
+    /// Feature detection or matching failed.
+    #[error("features: {0}")]
+    Features(#[from] FeatureError),
+    /// Geometry estimation failed (too few or degenerate correspondences).
+    #[error("geometry: {0}")]
+    Geometry(#[from] GeometryError),
+    /// Direct alignment failed.
+    #[error("direct: {0}")]
+    Direct(#[from] DirectError),
+}
+
+/// Wall-clock time of each stage of [`FeatureTracker::relative_pose`], milliseconds.
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct FeatureTimings {
+    /// ORB on both images.
+    pub detect: f64,
+    /// Descriptor matching.
+    pub matching: f64,
+    /// RANSAC, model selection, pose recovery and refinement.
+    pub estimate: f64,
+    /// Everything.
+    pub total: f64,
+}
+
+/// The feature-based relative pose and everything it was computed from.
+#[derive(Debug, Clone)]
+pub struct FeaturePose {
+    /// Pose `T_21` (unit translation), inliers, model, parallax.
+    pub estimate: RelativePose,
+    /// ORB features of frame 1 and frame 2.
+    pub features: [Features; 2],
+    /// Ratio-test matches, query = frame 1, train = frame 2; `estimate.inliers[i]` refers to
+    /// `matches[i]`.
+    pub matches: Vec<Match>,
+    /// Time per stage.
+    pub timings: FeatureTimings,
+}
+
+/// The feature-based two-view front-end: configuration of each stage.
+///
+/// ```
+/// use vofront::fixtures::image2d::to_gray8;
+/// use vofront::fixtures::scene::{default_camera, pose_wc, Scene};
+/// use vofront::pipeline::FeatureTracker;
+/// let room = Scene::box_room(3);
+/// let (t_w1, t_w2) = (pose_wc([0.0; 3], 0.0, 0.0, 0.0), pose_wc([0.15, 0.0, 0.05], -0.04, 0.0, 0.0));
+/// let cam = default_camera();
+/// let img1 = to_gray8(&room.render(&cam, 640, 480, &t_w1).image);
+/// let img2 = to_gray8(&room.render(&cam, 640, 480, &t_w2).image);
+/// let fit = FeatureTracker::default().relative_pose(&img1, &img2, &cam).unwrap();
+/// let truth = t_w2.inverse() * t_w1;
+/// assert!(fit.estimate.rotation.angle_to(&truth.rotation).to_degrees() < 0.5);
+/// ```
+#[derive(Debug, Clone, Default)]
+pub struct FeatureTracker {
+    /// ORB detector and descriptor.
+    pub orb: OrbConfig,
+    /// Matching filters (ratio 0.75 by default).
+    pub matching: MatchConfig,
+    /// Robust relative-pose estimation.
+    pub geometry: RelativePoseConfig,
+}
+
+fn ms_since(start: Instant) -> f64 {
+    start.elapsed().as_secs_f64() * 1e3
+}
+
+impl FeatureTracker {
+    /// A tracker keeping at most `n_features` ORB features per image, other settings default.
+    pub fn with_features(n_features: usize) -> Self {
+        Self {
+            orb: OrbConfig {
+                n_features,
+                ..OrbConfig::default()
+            },
+            ..Self::default()
+        }
+    }
+
+    /// Relative pose `T_21` of two frames from the same `camera` (pixels through its lens model).
+    pub fn relative_pose(
+        &self,
+        img1: &GrayImage,
+        img2: &GrayImage,
+        camera: &Camera,
+    ) -> Result<FeaturePose, VoError> {
+        let start = Instant::now();
+        let orb = Orb::new(self.orb.clone())?;
+        let (f1, f2) = rayon::join(
+            || orb.detect_and_describe(img1),
+            || orb.detect_and_describe(img2),
+        );
+        let (f1, f2) = (f1?, f2?);
+        let detect = ms_since(start);
+        let t_match = Instant::now();
+        let matches = match_descriptors(&f1.descriptors, &f2.descriptors, &self.matching);
+        let matching = ms_since(t_match);
+        let t_estimate = Instant::now();
+        let point = |f: &Features, i: u32| {
+            nalgebra::Vector2::new(f.xs[i as usize] as f64, f.ys[i as usize] as f64)
+        };
+        let x1: Vec<_> = matches.iter().map(|m| point(&f1, m.query)).collect();
+        let x2: Vec<_> = matches.iter().map(|m| point(&f2, m.train)).collect();
+        let estimate = estimate_relative_pose(&x1, &x2, camera, &self.geometry)?;
+        let timings = FeatureTimings {
+            detect,
+            matching,
+            estimate: ms_since(t_estimate),
+            total: ms_since(start),
+        };
+        Ok(FeaturePose {
+            estimate,
+            features: [f1, f2],
+            matches,
+            timings,
+        })
+    }
+}
+
+/// An 8-bit grey image as a direct-alignment plane (grey levels 0..255 as `f32`).
+pub fn gray_plane(img: &GrayImage) -> Plane {
+    Plane::from_gray8(img)
+}
+
+/// A metric depth map (metres, 0 = unknown) as a direct-alignment plane.
+pub fn depth_plane(depth: &DepthMap) -> Plane {
+    Plane::from_gray_f32(depth)
+}

@@ -1,0 +1,362 @@
+//! End-to-end tests of the `vofront` binary on synthetic fixtures with known motion, and on
+//! bad input (message and exit code).
+
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+
+use nalgebra::{Isometry3, Matrix3, Point3, Rotation3, UnitQuaternion, Vector2, Vector3};
+use serde_json::Value;
+use vofront::fixtures::image2d::{textured_image, to_gray8, translation, warped_textured_image};
+use vofront::fixtures::scene::{default_camera, pose_wc, Scene};
+
+/// Feature pose on a rendered pair with ~0.2 m baseline: rotation error bound, degrees
+/// (pixel-accurate matches on 600+ inliers give ~0.05 deg; 0.3 leaves room for the seed).
+const FEATURE_ROT_DEG: f64 = 0.3;
+/// Feature pose translation-direction error bound, degrees.
+const FEATURE_DIR_DEG: f64 = 3.0;
+/// Direct SE(3) on noiseless rendered frames: rotation bound, degrees.
+const SE3_ROT_DEG: f64 = 0.1;
+/// Direct SE(3) translation bound, metres (scene depth 2-6 m).
+const SE3_TRANS_M: f64 = 0.01;
+
+fn vofront(args: &[&str], cwd: &Path) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_vofront"))
+        .args(args)
+        .current_dir(cwd)
+        .output()
+        .expect("run vofront")
+}
+
+fn temp_dir(name: &str) -> PathBuf {
+    let dir = std::env::temp_dir().join(format!("vofront-cli-{name}-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    dir
+}
+
+/// Writes a rendered pair (and depth of frame 1 as 16-bit PNG at 5000/m); returns T_21.
+fn write_scene_pair(dir: &Path) -> Isometry3<f64> {
+    let room = Scene::box_room(21);
+    let t_w1 = pose_wc([0.0, 0.0, 0.0], 0.0, 0.0, 0.0);
+    let t_w2 = pose_wc([0.18, -0.04, 0.08], -0.05, 0.02, 0.01);
+    let cam = default_camera();
+    let v1 = room.render(&cam, 640, 480, &t_w1);
+    let v2 = room.render(&cam, 640, 480, &t_w2);
+    to_gray8(&v1.image).save(dir.join("1.png")).unwrap();
+    to_gray8(&v2.image).save(dir.join("2.png")).unwrap();
+    let depth: image::ImageBuffer<image::Luma<u16>, Vec<u16>> =
+        image::ImageBuffer::from_fn(640, 480, |x, y| {
+            image::Luma([(v1.depth.get_pixel(x, y)[0] * 5000.0).round() as u16])
+        });
+    depth.save(dir.join("1_depth.png")).unwrap();
+    t_w2.inverse() * t_w1
+}
+
+fn matrix(v: &Value) -> Matrix3<f64> {
+    let rows: Vec<Vec<f64>> = serde_json::from_value(v.clone()).expect("3x3 rows");
+    Matrix3::from_fn(|r, c| rows[r][c])
+}
+
+fn vector(v: &Value) -> Vector3<f64> {
+    let xs: Vec<f64> = serde_json::from_value(v.clone()).expect("3-vector");
+    Vector3::new(xs[0], xs[1], xs[2])
+}
+
+fn rotation_error_deg(r: &Matrix3<f64>, truth: &UnitQuaternion<f64>) -> f64 {
+    let q = UnitQuaternion::from_rotation_matrix(&Rotation3::from_matrix_unchecked(*r));
+    q.angle_to(truth).to_degrees()
+}
+
+#[test]
+fn two_view_json_matches_the_true_motion() {
+    let dir = temp_dir("two-view");
+    let truth = write_scene_pair(&dir);
+    let out = vofront(
+        &[
+            "two-view",
+            "1.png",
+            "2.png",
+            "--depth1",
+            "1_depth.png",
+            "--json",
+            "--out-dir",
+            "pics",
+        ],
+        &dir,
+    );
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let json: Value = serde_json::from_slice(&out.stdout).expect("one JSON object");
+    let keys: Vec<&str> = json
+        .as_object()
+        .unwrap()
+        .keys()
+        .map(|k| k.as_str())
+        .collect();
+    assert_eq!(keys.len(), 3, "{keys:?}");
+
+    let f = &json["feature"];
+    let rot = rotation_error_deg(&matrix(&f["R"]), &truth.rotation);
+    assert!(rot < FEATURE_ROT_DEG, "feature rotation error {rot} deg");
+    let t = vector(&f["t"]);
+    assert!((t.norm() - 1.0).abs() < 1e-6);
+    let dir_err = t.angle(&truth.translation.vector).to_degrees();
+    assert!(
+        dir_err < FEATURE_DIR_DEG,
+        "feature direction error {dir_err} deg"
+    );
+    assert!(f["inliers"].as_u64().unwrap() <= f["matches"].as_u64().unwrap());
+    assert_eq!(f["model"], "essential");
+    for key in ["detect", "match", "estimate", "total"] {
+        assert!(f["ms"][key].as_f64().unwrap() >= 0.0);
+    }
+
+    let se3 = &json["direct_se3"];
+    let rot = rotation_error_deg(&matrix(&se3["R"]), &truth.rotation);
+    assert!(rot < SE3_ROT_DEG, "direct rotation error {rot} deg");
+    let terr = (vector(&se3["t"]) - truth.translation.vector).norm();
+    assert!(terr < SE3_TRANS_M, "direct translation error {terr} m");
+    assert!(json["direct_translation"]["d"].is_array());
+
+    for pic in [
+        "keypoints1.png",
+        "keypoints2.png",
+        "matches.png",
+        "diff_before.png",
+        "diff_after.png",
+        "residual_se3.png",
+    ] {
+        assert!(dir.join("pics").join(pic).is_file(), "{pic} missing");
+    }
+    std::fs::remove_dir_all(&dir).ok();
+}
+
+#[test]
+fn two_view_direct_translation_recovers_a_known_shift() {
+    let dir = temp_dir("shift");
+    let (dx, dy) = (3.4, -2.2);
+    to_gray8(&textured_image(320, 240, 5))
+        .save(dir.join("a.png"))
+        .unwrap();
+    to_gray8(&warped_textured_image(320, 240, 5, &translation(dx, dy)))
+        .save(dir.join("b.png"))
+        .unwrap();
+    let out = vofront(
+        &["two-view", "a.png", "b.png", "--method", "direct", "--json"],
+        &dir,
+    );
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let json: Value = serde_json::from_slice(&out.stdout).unwrap();
+    let d: Vec<f64> = serde_json::from_value(json["direct_translation"]["d"].clone()).unwrap();
+    assert!(
+        (d[0] - dx).abs() < 0.05 && (d[1] - dy).abs() < 0.05,
+        "{d:?}"
+    );
+    assert!(
+        json.get("feature").is_none(),
+        "--method direct runs no feature estimate"
+    );
+    std::fs::remove_dir_all(&dir).ok();
+}
+
+#[test]
+fn relpose_recovers_the_pose_from_a_csv() {
+    let dir = temp_dir("relpose");
+    let cam = default_camera();
+    let truth = Isometry3::new(Vector3::new(0.3, 0.05, 0.1), Vector3::new(0.05, 0.1, 0.02));
+    let mut csv = String::from("x1,y1,x2,y2,score\n");
+    let mut state = 12345u64;
+    let mut uniform = || {
+        state = state.wrapping_mul(6364136223846793005).wrapping_add(1);
+        (state >> 11) as f64 / (1u64 << 53) as f64
+    };
+    for i in 0..300 {
+        let p = Point3::new(
+            uniform() * 4.0 - 2.0,
+            uniform() * 3.0 - 1.5,
+            2.0 + 6.0 * uniform(),
+        );
+        let a = cam.project(&p.coords).unwrap();
+        let b = if i % 4 == 0 {
+            Vector2::new(uniform() * 640.0, uniform() * 480.0)
+        } else {
+            cam.project(&(truth * p).coords).unwrap()
+        };
+        csv += &format!("{},{},{},{},0.5\n", a.x, a.y, b.x, b.y);
+    }
+    std::fs::write(dir.join("m.csv"), csv).unwrap();
+    let out = vofront(&["relpose", "m.csv"], &dir);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let json: Value = serde_json::from_slice(&out.stdout).unwrap();
+    let rot = rotation_error_deg(&matrix(&json["R"]), &truth.rotation);
+    assert!(rot < 0.05, "{rot}");
+    let inliers = json["inliers"].as_u64().unwrap();
+    assert!(
+        (215..=230).contains(&inliers),
+        "225 true inliers, got {inliers}"
+    );
+    assert!(
+        vector(&json["t"])
+            .angle(&truth.translation.vector)
+            .to_degrees()
+            < 1.0
+    );
+    std::fs::remove_dir_all(&dir).ok();
+}
+
+#[test]
+fn bad_input_gives_one_line_and_non_zero_exit() {
+    let dir = temp_dir("bad");
+    let missing = vofront(&["two-view", "nope1.png", "nope2.png"], &dir);
+    assert!(!missing.status.success());
+    let err = String::from_utf8_lossy(&missing.stderr);
+    assert!(err.contains("nope1.png"), "{err}");
+    assert_eq!(err.trim().lines().count(), 1, "{err}");
+
+    std::fs::write(dir.join("text.png"), "not an image").unwrap();
+    let bad = vofront(&["two-view", "text.png", "text.png"], &dir);
+    assert!(!bad.status.success());
+    assert!(String::from_utf8_lossy(&bad.stderr).contains("text.png"));
+
+    let flag = vofront(&["two-view", "a.png", "b.png", "--features", "many"], &dir);
+    assert_eq!(flag.status.code(), Some(2));
+    assert_eq!(
+        String::from_utf8_lossy(&flag.stderr).trim().lines().count(),
+        1
+    );
+
+    let preset = vofront(&["relpose", "x.csv", "--camera", "nope"], &dir);
+    assert!(!preset.status.success());
+    assert!(String::from_utf8_lossy(&preset.stderr).contains("unknown camera preset"));
+
+    // Different sizes: direct methods refuse, the feature method still answers (exit 0).
+    to_gray8(&textured_image(320, 240, 1))
+        .save(dir.join("small.png"))
+        .unwrap();
+    to_gray8(&textured_image(300, 240, 1))
+        .save(dir.join("other.png"))
+        .unwrap();
+    let sizes = vofront(&["two-view", "small.png", "other.png", "--json"], &dir);
+    let json: Value = serde_json::from_slice(&sizes.stdout).unwrap();
+    assert!(json["direct_translation"]["error"]
+        .as_str()
+        .unwrap()
+        .contains("size"));
+
+    // A flat image: every method fails, with an error per method and a non-zero exit.
+    image::GrayImage::from_pixel(64, 64, image::Luma([128]))
+        .save(dir.join("flat.png"))
+        .unwrap();
+    let flat = vofront(&["two-view", "flat.png", "flat.png", "--json"], &dir);
+    assert!(!flat.status.success());
+    let json: Value = serde_json::from_slice(&flat.stdout).unwrap();
+    assert!(
+        json["feature"]["error"].is_string() && json["direct_translation"]["error"].is_string()
+    );
+    std::fs::remove_dir_all(&dir).ok();
+}
+
+#[test]
+fn demo_without_arguments_reports_errors_against_truth_and_writes_pictures() {
+    let dir = temp_dir("demo");
+    let out = vofront(&[], &dir);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let text = String::from_utf8_lossy(&out.stdout);
+    assert!(text.contains("rotation error"), "{text}");
+    assert!(dir.join("vofront-out").join("matches.png").is_file());
+    std::fs::remove_dir_all(&dir).ok();
+}
+
+#[test]
+fn odometry_writes_trajectory_metrics_and_plot_and_eval_reads_them() {
+    use vofront::fixtures::scene::room_trajectory;
+    use vofront::fixtures::tum::write_tum_sequence;
+    let dir = temp_dir("odometry");
+    let seq = dir.join("seq");
+    write_tum_sequence(
+        &seq,
+        &Scene::box_room(2),
+        &default_camera(),
+        (640, 480),
+        &room_trajectory(12),
+    )
+    .unwrap();
+    let out = vofront(
+        &[
+            "odometry",
+            "seq",
+            "--method",
+            "feature-rgbd",
+            "--camera",
+            "tum-ros",
+            "--out",
+            "t.txt",
+            "--metrics",
+            "m.csv",
+            "--plot",
+            "p.png",
+        ],
+        &dir,
+    );
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let summary = String::from_utf8_lossy(&out.stdout);
+    assert!(
+        summary.contains("frames 12") && summary.contains("ATE"),
+        "{summary}"
+    );
+    let metrics = std::fs::read_to_string(dir.join("m.csv")).unwrap();
+    assert_eq!(metrics.lines().count(), 13, "header + one line per frame");
+    assert!(dir.join("p.png").is_file());
+
+    let eval = vofront(
+        &[
+            "eval",
+            "seq/groundtruth.txt",
+            "t.txt",
+            "--json",
+            "--max-dt",
+            "0.02",
+        ],
+        &dir,
+    );
+    assert!(
+        eval.status.success(),
+        "{}",
+        String::from_utf8_lossy(&eval.stderr)
+    );
+    let json: Value = serde_json::from_slice(&eval.stdout).unwrap();
+    assert_eq!(json["pairs"], 12);
+    assert!(json["ate"]["rmse"].as_f64().unwrap() < 0.01, "{json}");
+    assert!(
+        json["rpe"]["rotation_deg"]["rmse"].as_f64().unwrap() < 0.2,
+        "{json}"
+    );
+
+    std::fs::create_dir_all(dir.join("empty")).unwrap();
+    let empty = vofront(&["odometry", "empty"], &dir);
+    assert_eq!(empty.status.code(), Some(1));
+    let err = String::from_utf8_lossy(&empty.stderr);
+    assert!(
+        err.contains("empty") && err.trim().lines().count() == 1,
+        "{err}"
+    );
+    std::fs::remove_dir_all(&dir).ok();
+}
