@@ -15,9 +15,9 @@ use vofront::odometry::{TrackStatus, Tracker};
 
 /// Frames in the synthetic sequences (about 1 cm and 0.3 deg per frame).
 const FRAMES: usize = 40;
-/// ATE bound of the direct tracker on noiseless renders, metres: drift of 40 frames of
-/// sub-millimetre steps stays far below it.
-const DIRECT_ATE_M: f64 = 0.01;
+/// ATE bound of the direct tracker on noiseless renders, metres: frame-to-keyframe errors are
+/// a fraction of a millimetre, so 40 frames of drift stay well below it.
+const DIRECT_ATE_M: f64 = 0.005;
 /// ATE bound of the ORB + PnP tracker, metres: pixel-level keypoint noise at 2-6 m depth.
 const FEATURE_RGBD_ATE_M: f64 = 0.01;
 /// Monocular ATE bound after Sim(3) alignment, metres.
@@ -64,19 +64,15 @@ fn direct_tracker(width: u32) -> DirectTracker {
 
 #[test]
 fn direct_tracker_follows_the_room_sequence() {
-    let (dir, dataset) = sequence("direct", 320, 240);
-    let mut tracker = direct_tracker(320);
-    let out = run(&dataset, &mut tracker, None, |_, _| {});
-    assert_eq!(
-        out.summary.lost,
-        0,
-        "{:?}",
-        out.records
-            .iter()
-            .find(|r| matches!(&r.estimate, Ok(e) if e.status == TrackStatus::Lost))
-    );
+    let dataset = shared_sequence();
+    let mut tracker = direct_tracker(640);
+    let out = run(dataset, &mut tracker, None, |_, _| {});
+    assert_eq!(out.summary.lost + out.summary.reinitialised, 0);
     assert_eq!(out.trajectory.len(), FRAMES);
-    assert!(out.summary.keyframes >= 1);
+    assert!(
+        out.summary.keyframes >= 2,
+        "the camera moves far enough to need new keyframes"
+    );
     let first = out.trajectory.poses[0].1;
     assert!(
         first.translation.vector.norm() < 1e-12,
@@ -93,7 +89,6 @@ fn direct_tracker_follows_the_room_sequence() {
     )
     .unwrap();
     assert!(a.stats.rmse < DIRECT_ATE_M, "ATE {} m", a.stats.rmse);
-    std::fs::remove_dir_all(dir).ok();
 }
 
 #[test]

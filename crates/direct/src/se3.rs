@@ -22,7 +22,7 @@ use std::sync::Arc;
 
 use nalgebra::{Isometry3, Matrix6, SVector, Vector3};
 use rayon::prelude::*;
-use vofront_geometry::lie::se3_exp;
+use vofront_geometry::lie::retract_left;
 use vofront_robust::{Convergence, Loss, NormalEquations};
 
 use crate::error::DirectError;
@@ -207,7 +207,7 @@ impl Se3Reference {
         };
         let pyr = Pyramid::new(current, self.levels.len(), MIN_LEVEL_SIDE);
         let mut state = Se3State {
-            pose: *prior,
+            pose: vofront_geometry::lie::normalized(prior),
             a: 1.0,
             b: 0.0,
         };
@@ -458,7 +458,7 @@ impl LevelProblem<8> for Se3Level<'_> {
     fn retract(&self, s: &Se3State, delta: &SVector<f64, 8>) -> Se3State {
         let xi = delta.fixed_rows::<6>(0).into_owned();
         Se3State {
-            pose: se3_exp(&xi) * s.pose,
+            pose: retract_left(&s.pose, &xi),
             a: s.a + delta[6],
             b: s.b + delta[7],
         }

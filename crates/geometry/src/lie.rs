@@ -71,9 +71,21 @@ pub fn se3_log(t: &Isometry3<f64>) -> Vector6<f64> {
     Vector6::new(rho.x, rho.y, rho.z, phi.x, phi.y, phi.z)
 }
 
-/// The pose moved by a left increment: `exp(delta) * t`.
+/// The pose moved by a left increment: `exp(delta) * t`, renormalised.
 pub fn retract_left(t: &Isometry3<f64>, delta: &Vector6<f64>) -> Isometry3<f64> {
-    se3_exp(delta) * t
+    normalized(&(se3_exp(delta) * t))
+}
+
+/// The pose with its rotation quaternion renormalised to unit length.
+///
+/// Composing poses does not renormalise: chains of products, such as a constant-velocity
+/// prediction `T_k (T_{k-1}^-1 T_k)` fed back every frame, let the error compound until the
+/// "rotation" also scales points. Anything that stores poses across frames normalises them.
+pub fn normalized(t: &Isometry3<f64>) -> Isometry3<f64> {
+    Isometry3::from_parts(
+        t.translation,
+        UnitQuaternion::new_normalize(t.rotation.into_inner()),
+    )
 }
 
 /// `d (exp(delta) p') / d delta` at `delta = 0` for a transformed point `p' = T p`:
@@ -153,6 +165,15 @@ mod tests {
                 let numeric = (plus - minus) / (2.0 * h);
                 prop_assert!((numeric - j.column(k)).norm() < 1e-6);
             }
+        }
+
+        #[test]
+        fn normalized_restores_unit_length(xi in xi_strategy(), k in 0.5f64..1.5) {
+            let t = se3_exp(&xi);
+            let scaled = Isometry3::from_parts(t.translation, UnitQuaternion::new_unchecked(t.rotation.into_inner() * k));
+            let fixed = normalized(&scaled);
+            prop_assert!((fixed.rotation.norm() - 1.0).abs() < 1e-12);
+            prop_assert!(fixed.rotation.angle_to(&t.rotation) < 1e-9);
         }
 
         #[test]
