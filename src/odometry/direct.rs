@@ -16,7 +16,7 @@ use vofront_geometry::Camera;
 
 use super::keyframe::{KeyframePolicy, KeyframeView};
 use super::motion::ConstantVelocity;
-use super::{FrameEstimate, FrameQuality, TrackStatus, Tracker};
+use super::{ms_since, FrameEstimate, FrameQuality, TrackStatus, Tracker};
 use crate::dataset::Frame;
 
 /// Settings of [`DirectTracker`].
@@ -118,40 +118,15 @@ impl DirectTracker {
                 self.motion.update(t_wc);
                 // The last velocity led to a failure: do not trust it for the next frame.
                 self.motion.reset_velocity();
-                let quality = FrameQuality {
-                    keyframe: true,
-                    inlier_ratio: 1.0,
-                    ms: ms(start),
-                    ..FrameQuality::default()
-                };
-                let message = (status == TrackStatus::Reinitialised).then_some(why);
-                FrameEstimate {
-                    pose_wc: t_wc,
-                    status,
-                    quality,
-                    message,
-                }
+                FrameEstimate::started(t_wc, status, why, start)
             }
             Err(e) => {
                 self.keyframe = None;
                 self.motion.reset_velocity();
-                let quality = FrameQuality {
-                    ms: ms(start),
-                    ..FrameQuality::default()
-                };
-                FrameEstimate {
-                    pose_wc: t_wc,
-                    status: TrackStatus::Lost,
-                    quality,
-                    message: Some(format!("{why}; {e}")),
-                }
+                FrameEstimate::lost(t_wc, format!("{why}; {e}"), start)
             }
         }
     }
-}
-
-fn ms(start: Instant) -> f64 {
-    start.elapsed().as_secs_f64() * 1e3
 }
 
 impl Tracker for DirectTracker {
@@ -208,7 +183,7 @@ impl Tracker for DirectTracker {
             iterations: fit.iterations.iter().sum(),
             covariance_trace: fit.covariance.trace(),
             keyframe,
-            ms: ms(start),
+            ms: ms_since(start),
         };
         FrameEstimate {
             pose_wc: t_wc,

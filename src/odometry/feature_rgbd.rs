@@ -13,12 +13,14 @@ use nalgebra::{Isometry3, Point3, Vector2};
 use vofront_features::{
     match_descriptors, match_windowed, Features, Match, MatchConfig, Orb, OrbConfig,
 };
-use vofront_geometry::pnp::{solve_pnp_ransac, PnpConfig};
+use vofront_geometry::pnp::PnpConfig;
 use vofront_geometry::Camera;
 
 use super::keyframe::{KeyframePolicy, KeyframeView};
 use super::motion::ConstantVelocity;
-use super::{FrameEstimate, FrameQuality, TrackStatus, Tracker};
+use super::{
+    feature_pixel, ms_since, pnp_tracked, FrameEstimate, FrameQuality, TrackStatus, Tracker,
+};
 use crate::dataset::Frame;
 
 /// Settings of [`FeatureRgbdTracker`].
@@ -77,10 +79,6 @@ pub struct FeatureRgbdTracker {
     keyframe: Option<Keyframe>,
     motion: ConstantVelocity,
     started: bool,
-}
-
-fn ms(start: Instant) -> f64 {
-    start.elapsed().as_secs_f64() * 1e3
 }
 
 impl FeatureRgbdTracker {
@@ -162,33 +160,12 @@ impl FeatureRgbdTracker {
                 self.started = true;
                 self.motion.update(t_wc);
                 self.motion.reset_velocity();
-                let quality = FrameQuality {
-                    keyframe: true,
-                    inlier_ratio: 1.0,
-                    ms: ms(start),
-                    ..FrameQuality::default()
-                };
-                let message = (status == TrackStatus::Reinitialised).then_some(why);
-                FrameEstimate {
-                    pose_wc: t_wc,
-                    status,
-                    quality,
-                    message,
-                }
+                FrameEstimate::started(t_wc, status, why, start)
             }
             Err(e) => {
                 self.keyframe = None;
                 self.motion.reset_velocity();
-                let quality = FrameQuality {
-                    ms: ms(start),
-                    ..FrameQuality::default()
-                };
-                FrameEstimate {
-                    pose_wc: t_wc,
-                    status: TrackStatus::Lost,
-                    quality,
-                    message: Some(format!("{why}; {e}")),
-                }
+                FrameEstimate::lost(t_wc, format!("{why}; {e}"), start)
             }
         }
     }
@@ -254,25 +231,16 @@ impl Tracker for FeatureRgbdTracker {
             .collect();
         let pixels: Vec<Vector2<f64>> = matches
             .iter()
-            .map(|m| {
-                Vector2::new(
-                    features.xs[m.train as usize] as f64,
-                    features.ys[m.train as usize] as f64,
-                )
-            })
+            .map(|m| feature_pixel(&features, m.train))
             .collect();
-        let fit = solve_pnp_ransac(&world, &pixels, &self.camera, Some(prior), &self.cfg.pnp)
-            .map_err(|e| e.to_string())
-            .and_then(|r| {
-                if r.inlier_count >= self.cfg.min_inliers {
-                    Ok(r)
-                } else {
-                    Err(format!(
-                        "{} PnP inliers, {} needed",
-                        r.inlier_count, self.cfg.min_inliers
-                    ))
-                }
-            });
+        let fit = pnp_tracked(
+            &world,
+            &pixels,
+            &self.camera,
+            prior,
+            &self.cfg.pnp,
+            self.cfg.min_inliers,
+        );
         let fit = match fit {
             Ok(fit) => fit,
             Err(why) => return self.restart(frame, features, predicted, why, start),
@@ -309,7 +277,7 @@ impl Tracker for FeatureRgbdTracker {
         };
         let quality = FrameQuality {
             keyframe,
-            ms: ms(start),
+            ms: ms_since(start),
             ..quality
         };
         FrameEstimate {

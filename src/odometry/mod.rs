@@ -17,7 +17,12 @@ pub mod mono;
 pub mod motion;
 pub mod run;
 
-use nalgebra::Isometry3;
+use std::time::Instant;
+
+use nalgebra::{Isometry3, Point3, Vector2};
+use vofront_features::Features;
+use vofront_geometry::pnp::{solve_pnp_ransac, PnpConfig, PnpResult};
+use vofront_geometry::Camera;
 
 use crate::dataset::Frame;
 
@@ -81,4 +86,74 @@ pub struct FrameEstimate {
 pub trait Tracker {
     /// Estimates the pose of the next frame.
     fn track(&mut self, frame: &Frame) -> FrameEstimate;
+}
+
+/// Milliseconds since `start`.
+pub(crate) fn ms_since(start: Instant) -> f64 {
+    start.elapsed().as_secs_f64() * 1e3
+}
+
+impl FrameEstimate {
+    /// A frame that (re)starts tracking as a new keyframe at `pose_wc`; `why` tracking had to
+    /// restart is kept as the message of a [`TrackStatus::Reinitialised`] frame.
+    pub(crate) fn started(
+        pose_wc: Isometry3<f64>,
+        status: TrackStatus,
+        why: String,
+        start: Instant,
+    ) -> Self {
+        let quality = FrameQuality {
+            keyframe: true,
+            inlier_ratio: 1.0,
+            ms: ms_since(start),
+            ..FrameQuality::default()
+        };
+        let message = (status == TrackStatus::Reinitialised).then_some(why);
+        Self {
+            pose_wc,
+            status,
+            quality,
+            message,
+        }
+    }
+
+    /// A lost frame, reported at the motion model's guess `pose_wc`.
+    pub(crate) fn lost(pose_wc: Isometry3<f64>, why: String, start: Instant) -> Self {
+        let quality = FrameQuality {
+            ms: ms_since(start),
+            ..FrameQuality::default()
+        };
+        Self {
+            pose_wc,
+            status: TrackStatus::Lost,
+            quality,
+            message: Some(why),
+        }
+    }
+}
+
+/// Level-0 pixel of feature `i`.
+pub(crate) fn feature_pixel(f: &Features, i: u32) -> Vector2<f64> {
+    Vector2::new(f.xs[i as usize] as f64, f.ys[i as usize] as f64)
+}
+
+/// PnP RANSAC with refinement, accepted only with at least `min_inliers` inliers.
+pub(crate) fn pnp_tracked(
+    world: &[Point3<f64>],
+    pixels: &[Vector2<f64>],
+    camera: &Camera,
+    prior: Isometry3<f64>,
+    cfg: &PnpConfig,
+    min_inliers: usize,
+) -> Result<PnpResult, String> {
+    let fit =
+        solve_pnp_ransac(world, pixels, camera, Some(prior), cfg).map_err(|e| e.to_string())?;
+    if fit.inlier_count >= min_inliers {
+        Ok(fit)
+    } else {
+        Err(format!(
+            "{} PnP inliers, {} needed",
+            fit.inlier_count, min_inliers
+        ))
+    }
 }

@@ -19,13 +19,15 @@ use nalgebra::{Isometry3, Point3, Vector2, Vector3};
 use vofront_features::{
     match_descriptors, match_windowed, Features, Match, MatchConfig, Orb, OrbConfig,
 };
-use vofront_geometry::pnp::{solve_pnp_ransac, PnpConfig};
+use vofront_geometry::pnp::PnpConfig;
 use vofront_geometry::triangulate::{parallax_deg, triangulate_dlt};
 use vofront_geometry::{estimate_relative_pose, Camera, RelativePoseConfig};
 
 use super::keyframe::{KeyframePolicy, KeyframeView};
 use super::motion::ConstantVelocity;
-use super::{FrameEstimate, FrameQuality, TrackStatus, Tracker};
+use super::{
+    feature_pixel, ms_since, pnp_tracked, FrameEstimate, FrameQuality, TrackStatus, Tracker,
+};
 use crate::dataset::Frame;
 
 /// Settings of [`MonoTracker`].
@@ -126,14 +128,6 @@ pub struct MonoTracker {
     initialised_once: bool,
 }
 
-fn ms(start: Instant) -> f64 {
-    start.elapsed().as_secs_f64() * 1e3
-}
-
-fn pixel(f: &Features, i: u32) -> Vector2<f64> {
-    Vector2::new(f.xs[i as usize] as f64, f.ys[i as usize] as f64)
-}
-
 /// Frames an initialisation waits for parallax before taking a newer reference.
 const MAX_INIT_FRAMES: usize = 30;
 
@@ -178,8 +172,14 @@ impl MonoTracker {
             &current.descriptors,
             &self.cfg.matching,
         );
-        let x1: Vec<_> = matches.iter().map(|m| pixel(reference, m.query)).collect();
-        let x2: Vec<_> = matches.iter().map(|m| pixel(current, m.train)).collect();
+        let x1: Vec<_> = matches
+            .iter()
+            .map(|m| feature_pixel(reference, m.query))
+            .collect();
+        let x2: Vec<_> = matches
+            .iter()
+            .map(|m| feature_pixel(current, m.train))
+            .collect();
         let rel = estimate_relative_pose(&x1, &x2, &self.camera, &self.cfg.relative)
             .map_err(|e| e.to_string())?;
         if rel.low_parallax || rel.parallax_deg < self.cfg.min_init_parallax_deg {
@@ -241,7 +241,10 @@ impl MonoTracker {
             if kf.points[m.query as usize].is_some() || points[m.train as usize].is_some() {
                 continue;
             }
-            let (u1, u2) = (pixel(&kf.features, m.query), pixel(&current, m.train));
+            let (u1, u2) = (
+                feature_pixel(&kf.features, m.query),
+                feature_pixel(&current, m.train),
+            );
             let (Some(n1), Some(n2)) = (
                 self.camera.pixel_to_normalized(&u1),
                 self.camera.pixel_to_normalized(&u2),
@@ -317,19 +320,18 @@ impl MonoTracker {
             .iter()
             .filter_map(|m| kf.points[m.query as usize])
             .collect();
-        let pixels: Vec<Vector2<f64>> = matches.iter().map(|m| pixel(&current, m.train)).collect();
-        let fit = solve_pnp_ransac(&world, &pixels, &self.camera, Some(prior), &self.cfg.pnp)
-            .map_err(|e| e.to_string())
-            .and_then(|r| {
-                if r.inlier_count >= self.cfg.min_inliers {
-                    Ok(r)
-                } else {
-                    Err(format!(
-                        "{} PnP inliers, {} needed",
-                        r.inlier_count, self.cfg.min_inliers
-                    ))
-                }
-            });
+        let pixels: Vec<Vector2<f64>> = matches
+            .iter()
+            .map(|m| feature_pixel(&current, m.train))
+            .collect();
+        let fit = pnp_tracked(
+            &world,
+            &pixels,
+            &self.camera,
+            prior,
+            &self.cfg.pnp,
+            self.cfg.min_inliers,
+        );
         let fit = match fit {
             Ok(fit) => fit,
             Err(why) => {
@@ -340,7 +342,7 @@ impl MonoTracker {
                 };
                 self.motion.reset_velocity();
                 let quality = FrameQuality {
-                    ms: ms(start),
+                    ms: ms_since(start),
                     ..FrameQuality::default()
                 };
                 return self.estimate(predicted, TrackStatus::Lost, quality, Some(why));
@@ -383,7 +385,7 @@ impl MonoTracker {
             (None, State::Tracking(kf)) => kf.first_residual = Some(first_residual),
             (None, _) => {}
         }
-        quality.ms = ms(start);
+        quality.ms = ms_since(start);
         self.estimate(t_wc, TrackStatus::Ok, quality, None)
     }
 }
@@ -416,7 +418,7 @@ impl Tracker for MonoTracker {
                     self.motion.update(predicted);
                     let quality = FrameQuality {
                         keyframe: true,
-                        ms: ms(start),
+                        ms: ms_since(start),
                         ..FrameQuality::default()
                     };
                     self.estimate(predicted, TrackStatus::Ok, quality, None)
@@ -449,7 +451,7 @@ impl Tracker for MonoTracker {
                         pose,
                         status,
                         FrameQuality {
-                            ms: ms(start),
+                            ms: ms_since(start),
                             ..quality
                         },
                         None,
@@ -470,7 +472,7 @@ impl Tracker for MonoTracker {
                         }
                     };
                     let quality = FrameQuality {
-                        ms: ms(start),
+                        ms: ms_since(start),
                         ..FrameQuality::default()
                     };
                     self.estimate(predicted, TrackStatus::Lost, quality, Some(why))
