@@ -197,6 +197,17 @@ pub enum OdometryMethod {
     Feature,
 }
 
+impl OdometryMethod {
+    /// The name used on the command line.
+    pub fn name(self) -> &'static str {
+        match self {
+            OdometryMethod::Direct => "direct",
+            OdometryMethod::FeatureRgbd => "feature-rgbd",
+            OdometryMethod::Feature => "feature",
+        }
+    }
+}
+
 /// Flags of `vofront odometry`.
 #[derive(Debug, Args)]
 pub struct OdometryArgs {

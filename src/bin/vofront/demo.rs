@@ -119,7 +119,7 @@ fn run_sequence(room: &Scene, camera: vofront::geometry::Camera) -> Result<(), S
         OdometryMethod::FeatureRgbd,
         OdometryMethod::Feature,
     ] {
-        let name = format!("{method:?}").to_lowercase();
+        let name = method.name();
         let mut tracker = make_tracker(method, camera)?;
         let out = track(&dataset, tracker.as_mut(), None);
         let traj = Path::new(OUT_DIR).join(format!("{name}_trajectory.txt"));
