@@ -4,13 +4,15 @@
 //! `x`-`z` plane (`x` to the right, `z` up the page, equal scale on both axes; cameras move
 //! in `x`/`z` with `y` down). Right: the ATE translation error (red) against time, with axes
 //! from `(t_first, 0 m)` and five ticks each. Two coloured boxes in the top-left corner give
-//! the colour key (ground truth first, estimate second). No text is drawn.
+//! the colour key (`GT`, `EST`). Labels in a 5x7 bitmap font give the side of the top-view
+//! square, the largest error and the time span.
 
 use std::path::Path;
 
 use image::{Rgb, RgbImage};
 use thiserror::Error;
 
+use crate::draw::{metres_label, text};
 use crate::trajectory::Trajectory;
 
 /// Width and height of one panel, pixels.
@@ -96,7 +98,11 @@ pub fn render_plot(
     polyline(&mut img, gt_xz.iter().map(|&p| to_px(p)), GT_COLOUR);
     polyline(&mut img, est_xz.iter().map(|&p| to_px(p)), EST_COLOUR);
     fill_box(&mut img, 10, 10, 14, GT_COLOUR);
-    fill_box(&mut img, 30, 10, 14, EST_COLOUR);
+    text(&mut img, (28, 13), "GT", 1, BLACK);
+    fill_box(&mut img, 50, 10, 14, EST_COLOUR);
+    text(&mut img, (68, 13), "EST", 1, BLACK);
+    let side = format!("X-Z SIDE {}", metres_label(span));
+    text(&mut img, (10, PANEL_SIZE as i64 - 20), &side, 1, BLACK);
 
     // Right panel: error against time, axes from (t_first, 0).
     let eb = Bounds::of(errors.iter());
@@ -128,6 +134,32 @@ pub fn render_plot(
         );
     }
     polyline(&mut img, errors.iter().map(|&p| to_px(p)), ERROR_COLOUR);
+    let top = (left as i64, (bottom - plot_span) as i64 - 14);
+    text(
+        &mut img,
+        top,
+        &format!("ATE MAX {}", metres_label(e_max)),
+        1,
+        BLACK,
+    );
+    text(
+        &mut img,
+        ((left - 14.0) as i64, bottom as i64 - 3),
+        "0",
+        1,
+        BLACK,
+    );
+    let time = format!("T {t_span:.1} S");
+    text(
+        &mut img,
+        (
+            (left + plot_span) as i64 - 6 * time.len() as i64,
+            bottom as i64 + 12,
+        ),
+        &time,
+        1,
+        BLACK,
+    );
     Ok(img)
 }
 
@@ -192,28 +224,12 @@ fn polyline(img: &mut RgbImage, points: impl Iterator<Item = (f64, f64)>, colour
     }
 }
 
-/// Bresenham line between pixel positions (rounded), clipped to the image.
+/// A line between pixel positions, clipped to the image ([`crate::draw::line`]).
 fn line(img: &mut RgbImage, a: (f64, f64), b: (f64, f64), colour: Rgb<u8>) {
-    let (mut x, mut y) = (a.0.round() as i64, a.1.round() as i64);
-    let (x1, y1) = (b.0.round() as i64, b.1.round() as i64);
-    let (dx, dy) = ((x1 - x).abs(), -(y1 - y).abs());
-    let (sx, sy) = ((x1 - x).signum(), (y1 - y).signum());
-    let mut err = dx + dy;
-    loop {
-        if (0..img.width() as i64).contains(&x) && (0..img.height() as i64).contains(&y) {
-            img.put_pixel(x as u32, y as u32, colour);
-        }
-        if x == x1 && y == y1 {
-            break;
-        }
-        let e2 = 2 * err;
-        if e2 >= dy {
-            err += dy;
-            x += sx;
-        }
-        if e2 <= dx {
-            err += dx;
-            y += sy;
-        }
-    }
+    crate::draw::line(
+        img,
+        (a.0 as f32, a.1 as f32),
+        (b.0 as f32, b.1 as f32),
+        colour,
+    );
 }

@@ -25,12 +25,12 @@ fn report_pose(name: &str, estimate: &Isometry3<f64>, truth: &Isometry3<f64>, me
     let rot = rotation_angle_deg(&estimate.rotation, &truth.rotation);
     let (t, tt) = (estimate.translation.vector, truth.translation.vector);
     if metric {
-        println!(
+        outln!(
             "  {name:<11} rotation error {rot:.4} deg, translation error {:.2} mm",
             (t - tt).norm() * 1e3
         );
     } else {
-        println!(
+        outln!(
             "  {name:<11} rotation error {rot:.4} deg, translation direction error {:.3} deg",
             direction_angle_deg(&t, &tt)
         );
@@ -54,7 +54,7 @@ pub fn run() -> Result<(), String> {
         method: Method::All,
         features: 2000,
     };
-    println!(
+    outln!(
         "synthetic room, 640x480, camera moved {:.0} mm and turned {:.2} deg between the frames",
         truth.translation.vector.norm() * 1e3,
         truth.rotation.angle().to_degrees()
@@ -62,15 +62,15 @@ pub fn run() -> Result<(), String> {
     let outcome = estimate(&inputs);
     print_text(&outcome);
 
-    println!("errors against the true motion:");
+    outln!("errors against the true motion:");
     match &outcome.feature {
         Some(Ok(f)) => report_pose("feature", &f.estimate.pose, &truth, false),
-        Some(Err(e)) => println!("  feature     failed: {e}"),
+        Some(Err(e)) => outln!("  feature     failed: {e}"),
         None => {}
     }
     match &outcome.se3 {
         Some(Ok((s, _))) => report_pose("direct SE3", &s.pose, &truth, true),
-        Some(Err(e)) => println!("  direct SE3  failed: {e}"),
+        Some(Err(e)) => outln!("  direct SE3  failed: {e}"),
         None => {}
     }
     let shift = (2.3, -1.7);
@@ -81,7 +81,7 @@ pub fn run() -> Result<(), String> {
         &TranslationConfig::default(),
     )
     .map_err(|e| format!("direct 2D on the shifted texture: {e}"))?;
-    println!(
+    outln!(
         "  direct 2D   shift ({:+.3}, {:+.3}) px for a true ({:+.3}, {:+.3}): error {:.4} px",
         fit.d.x,
         fit.d.y,
@@ -91,7 +91,7 @@ pub fn run() -> Result<(), String> {
     );
 
     write_pictures(Path::new(OUT_DIR), &inputs, &outcome)?;
-    println!("pictures written to {OUT_DIR}/");
+    outln!("pictures written to {OUT_DIR}/");
     if !outcome.any_estimate() {
         return Err("no estimator produced an estimate".into());
     }
@@ -110,7 +110,7 @@ fn run_sequence(room: &Scene, camera: vofront::geometry::Camera) -> Result<(), S
     )
     .map_err(|e| format!("cannot write {}: {e}", dir.display()))?;
     let dataset = Dataset::open(&dir).map_err(|e| e.to_string())?;
-    println!(
+    outln!(
         "\nsynthetic TUM sequence of {SEQUENCE_FRAMES} frames written to {}",
         dir.display()
     );
@@ -124,7 +124,7 @@ fn run_sequence(room: &Scene, camera: vofront::geometry::Camera) -> Result<(), S
         let out = track(&dataset, tracker.as_mut(), None);
         let traj = Path::new(OUT_DIR).join(format!("{name}_trajectory.txt"));
         out.trajectory.write_tum(&traj).map_err(|e| e.to_string())?;
-        print!("{name:<12} ");
+        out!("{name:<12} ");
         report(
             &dataset,
             &out,

@@ -47,19 +47,23 @@ pub fn run(args: &EvalArgs) -> Result<(), String> {
             "ate": stats_json(&ate.stats),
             "rpe": {"translation": stats_json(&rpe.translation), "rotation_deg": stats_json(&rpe.rotation_deg)},
         });
-        println!("{out}");
+        outln!("{out}");
     } else {
-        println!("associated poses   {}", ate.pairs.len());
-        println!(
+        outln!("associated poses   {}", ate.pairs.len());
+        outln!(
             "alignment          {:?} (scale {:.6})",
-            args.align, ate.alignment.scale
+            args.align,
+            ate.alignment.scale
         );
-        println!(
+        outln!(
             "ATE rmse           {:.6} m  (mean {:.6}, median {:.6}, max {:.6})",
-            ate.stats.rmse, ate.stats.mean, ate.stats.median, ate.stats.max
+            ate.stats.rmse,
+            ate.stats.mean,
+            ate.stats.median,
+            ate.stats.max
         );
-        println!("RPE trans rmse     {:.6} m per frame", rpe.translation.rmse);
-        println!(
+        outln!("RPE trans rmse     {:.6} m per frame", rpe.translation.rmse);
+        outln!(
             "RPE rot rmse       {:.6} deg per frame",
             rpe.rotation_deg.rmse
         );

@@ -3,6 +3,27 @@
 //! Exit codes: 0 success (for `two-view`: at least one estimator produced an estimate);
 //! 1 the job failed, with a one-line message saying why; 2 bad command line; 3 (`odometry`)
 //! tracking was lost for good, partial results written.
+/// `println!` that ends the process quietly (exit 141, as a SIGPIPE would) when standard
+/// output has been closed, e.g. by `vofront ... | head`, instead of panicking.
+macro_rules! outln {
+    ($($arg:tt)*) => {{
+        use std::io::Write as _;
+        if writeln!(std::io::stdout(), $($arg)*).is_err() {
+            std::process::exit(141);
+        }
+    }};
+}
+
+/// `print!` with the same closed-pipe behaviour as [`outln!`].
+macro_rules! out {
+    ($($arg:tt)*) => {{
+        use std::io::Write as _;
+        if write!(std::io::stdout(), $($arg)*).is_err() {
+            std::process::exit(141);
+        }
+    }};
+}
+
 mod args;
 mod demo;
 mod eval_cmd;
@@ -20,7 +41,7 @@ fn main() -> ExitCode {
     let cli = match Cli::try_parse() {
         Ok(cli) => cli,
         Err(e) if !e.use_stderr() => {
-            print!("{e}");
+            out!("{e}");
             return ExitCode::SUCCESS;
         }
         Err(e) => {

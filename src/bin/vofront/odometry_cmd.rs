@@ -91,7 +91,7 @@ pub fn report(
     plot: Option<&Path>,
 ) -> Result<(), String> {
     let s = &out.summary;
-    println!(
+    outln!(
         "frames {}, tracked {}, lost {}, reinitialised {}, unreadable {}, keyframes {}, {:.1} ms per frame ({:.0} frames/s)",
         s.frames, out.trajectory.len(), s.lost, s.reinitialised, s.unreadable, s.keyframes, s.mean_ms,
         1e3 / s.mean_ms.max(1e-9)
@@ -108,7 +108,7 @@ pub fn report(
     };
     match ate(gt, &out.trajectory, &cfg) {
         Ok(a) => {
-            println!(
+            outln!(
                 "ATE rmse {:.4} m over {} poses ({alignment:?}-aligned)",
                 a.stats.rmse,
                 a.pairs.len()
@@ -118,7 +118,7 @@ pub fn report(
                     .map_err(|e| format!("{}: {e}", path.display()))?;
             }
         }
-        Err(e) => println!("ATE not computed: {e}"),
+        Err(e) => outln!("ATE not computed: {e}"),
     }
     Ok(())
 }

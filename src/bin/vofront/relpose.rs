@@ -24,6 +24,6 @@ pub fn run(args: &RelposeArgs) -> Result<(), String> {
         "inliers": fit.inlier_count,
         "ms": ms,
     });
-    println!("{out}");
+    outln!("{out}");
     Ok(())
 }

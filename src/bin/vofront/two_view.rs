@@ -179,7 +179,7 @@ pub fn print_text(outcome: &Outcome) {
             Ok(f) => {
                 let e = &f.estimate;
                 let (rot, t) = (e.rotation.scaled_axis().map(f64::to_degrees), e.translation);
-                println!(
+                outln!(
                     "feature     {:?} model, {} + {} keypoints, {} matches, {} inliers ({:.0}%)",
                     e.model,
                     f.features[0].len(),
@@ -188,9 +188,9 @@ pub fn print_text(outcome: &Outcome) {
                     e.inlier_count,
                     100.0 * e.inlier_count as f64 / f.matches.len().max(1) as f64
                 );
-                println!("            rotation vector {:+.3} {:+.3} {:+.3} deg, translation direction {:+.3} {:+.3} {:+.3}",
+                outln!("            rotation vector {:+.3} {:+.3} {:+.3} deg, translation direction {:+.3} {:+.3} {:+.3}",
                     rot.x, rot.y, rot.z, t.x, t.y, t.z);
-                println!(
+                outln!(
                     "            median parallax {:.2} deg{}",
                     e.parallax_deg,
                     if e.low_parallax {
@@ -200,23 +200,26 @@ pub fn print_text(outcome: &Outcome) {
                     }
                 );
                 let ms = f.timings;
-                println!(
+                outln!(
                     "            {:.1} ms (detect {:.1}, match {:.1}, estimate {:.1})",
-                    ms.total, ms.detect, ms.matching, ms.estimate
+                    ms.total,
+                    ms.detect,
+                    ms.matching,
+                    ms.estimate
                 );
             }
-            Err(e) => println!("feature     failed: {e}"),
+            Err(e) => outln!("feature     failed: {e}"),
         }
     }
     if let Some(r) = &outcome.translation {
         match r {
-            Ok((d, ms)) => println!(
+            Ok((d, ms)) => outln!(
                 "direct 2D   shift d = ({:+.3}, {:+.3}) px with I2(x + d) = I1(x); rmse {:.2} grey levels, sigma ({:.3}, {:.3}) px, {} iterations{}, {:.1} ms",
                 d.d.x, d.d.y, d.rmse, d.covariance[(0, 0)].sqrt(), d.covariance[(1, 1)].sqrt(),
                 d.iterations.iter().sum::<usize>(),
                 if d.converged { "" } else { " (not converged: a 2D shift does not explain this pair)" },
                 ms),
-            Err(e) => println!("direct 2D   failed: {e}"),
+            Err(e) => outln!("direct 2D   failed: {e}"),
         }
     }
     if let Some(r) = &outcome.se3 {
@@ -226,12 +229,12 @@ pub fn print_text(outcome: &Outcome) {
                     s.pose.rotation.scaled_axis().map(f64::to_degrees),
                     s.pose.translation.vector,
                 );
-                println!("direct SE3  rotation vector {:+.3} {:+.3} {:+.3} deg, translation {:+.4} {:+.4} {:+.4} m",
+                outln!("direct SE3  rotation vector {:+.3} {:+.3} {:+.3} deg, translation {:+.4} {:+.4} {:+.4} m",
                     rot.x, rot.y, rot.z, t.x, t.y, t.z);
-                println!("            brightness a {:.3} b {:+.2}; rmse {:.2} grey levels, {:.0}% inliers of {} pixels, {:.1} ms",
+                outln!("            brightness a {:.3} b {:+.2}; rmse {:.2} grey levels, {:.0}% inliers of {} pixels, {:.1} ms",
                     s.a, s.b, s.rmse, 100.0 * s.inlier_ratio, s.valid_pixels, ms);
             }
-            Err(e) => println!("direct SE3  failed: {e}"),
+            Err(e) => outln!("direct SE3  failed: {e}"),
         }
     }
 }
@@ -341,7 +344,7 @@ pub fn run(args: &TwoViewArgs) -> Result<bool, String> {
     };
     let outcome = estimate(&inputs);
     if args.json {
-        println!("{}", to_json(&outcome));
+        outln!("{}", to_json(&outcome));
     } else {
         print_text(&outcome);
     }

@@ -1,6 +1,8 @@
 //! Pictures a person can check at a glance: keypoints, matches side by side, difference images
 //! and residual maps. Plain raster drawing on `image::RgbImage`, nothing more.
 
+mod font;
+
 use image::{GrayImage, Rgb, RgbImage};
 
 /// Green: inliers and keypoints.
@@ -104,4 +106,33 @@ pub fn heat(width: u32, height: u32, values: &[f32], max: f32) -> RgbImage {
             Rgb([g, g, g])
         }
     })
+}
+
+/// Writes `text` with its top-left corner at `(x, y)` in the 5x7 font, each font pixel drawn
+/// as a `scale x scale` block; characters the font lacks are left blank. Upper-case labels only.
+pub fn text(img: &mut RgbImage, (x, y): (i64, i64), text: &str, scale: i64, c: Rgb<u8>) {
+    for (k, ch) in text.chars().enumerate() {
+        let Some(rows) = font::glyph(ch) else {
+            continue;
+        };
+        let x0 = x + k as i64 * 6 * scale;
+        for (r, bits) in rows.iter().enumerate() {
+            for col in 0..5 {
+                if bits & (0x10 >> col) != 0 {
+                    for (dy, dx) in (0..scale).flat_map(|dy| (0..scale).map(move |dx| (dy, dx))) {
+                        put(img, x0 + col * scale + dx, y + r as i64 * scale + dy, c);
+                    }
+                }
+            }
+        }
+    }
+}
+
+/// A length in metres as a short upper-case label: millimetres below 10 cm.
+pub fn metres_label(v: f64) -> String {
+    if v.abs() < 0.1 {
+        format!("{:.2} MM", v * 1e3)
+    } else {
+        format!("{v:.3} M")
+    }
 }
