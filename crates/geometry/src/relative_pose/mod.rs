@@ -24,7 +24,9 @@ mod estimators;
 mod refine;
 
 pub use estimators::{Correspondences, EssentialEstimator, HomographyEstimator, HomographyModel};
-pub use refine::{refine_relative_pose, tangent_basis, RelState};
+pub use refine::{
+    refine_maximum_likelihood, refine_relative_pose, tangent_basis, MlRefineConfig, RelState,
+};
 use vofront_robust::Loss;
 
 use nalgebra::{
@@ -484,17 +486,15 @@ pub fn estimate_relative_pose(
                 > 1e-3
                 || r.0 .1.dot(&state.1) < 0.9998)
     });
-    // Final polish of the chosen motion: least squares of the Sampson distance on its inliers
-    // (maximum likelihood for Gaussian pixel noise once the outliers are out).
+    // Final maximum-likelihood refit of the chosen motion with the noise scale estimated from
+    // its own residuals.
     let mut state = state;
     if cfg.refine {
-        let e = hat(&state.1) * state.0.matrix();
-        let inl: Vec<usize> = (0..data.len())
-            .filter(|&k| est.residual_sq(&e, k) < thr_sq)
-            .collect();
-        if inl.len() >= MIN_CORRESPONDENCES {
-            state = refine_relative_pose(&data, &inl, focal, sigma, Loss::Squared, state);
-        }
+        let ml = MlRefineConfig {
+            initial_sigma_px: sigma,
+            ..MlRefineConfig::default()
+        };
+        state = refine_maximum_likelihood(&data, focal, &ml, state).0;
     }
     let (ambiguous, alternative) = match rival {
         Some(r) => (true, Some(isometry(&r.0 .0, &r.0 .1))),
