@@ -219,23 +219,23 @@ mod tests {
         let mut rng = rand::rngs::StdRng::seed_from_u64(7);
         let mut gauss = || {
             // Box-Muller.
-            let (u, v): (f64, f64) = (rng.gen_range(1e-12..1.0), rng.gen_range(0.0..1.0));
+            let (u, v): (f64, f64) = (rng.random_range(1e-12..1.0), rng.random_range(0.0..1.0));
             (-2.0 * u.ln()).sqrt() * (std::f64::consts::TAU * v).cos()
         };
         let mut rng2 = rand::rngs::StdRng::seed_from_u64(8);
         let mut data = Correspondences::default();
         for _ in 0..600 {
             let p = Vector3::new(
-                rng2.gen_range(-2.0..2.0),
-                rng2.gen_range(-1.5..1.5),
-                rng2.gen_range(2.0..8.0),
+                rng2.random_range(-2.0..2.0),
+                rng2.random_range(-1.5..1.5),
+                rng2.random_range(2.0..8.0),
             );
             let q = r * p + t;
             let n = noise_px / focal;
             let a = Vector2::new(p.x / p.z + n * gauss(), p.y / p.z + n * gauss());
             let mut b = Vector2::new(q.x / q.z + n * gauss(), q.y / q.z + n * gauss());
-            if rng2.gen_range(0.0..1.0) < outliers {
-                b = Vector2::new(rng2.gen_range(-0.6..0.6), rng2.gen_range(-0.45..0.45));
+            if rng2.random_range(0.0..1.0) < outliers {
+                b = Vector2::new(rng2.random_range(-0.6..0.6), rng2.random_range(-0.45..0.45));
             }
             data.push(&a, &b);
         }
