@@ -14,8 +14,10 @@
 //!    the one with most points in front of both cameras and closer than the far limit kept;
 //! 5. refinement of `(R, t)` (`t` on the unit sphere) on the inliers by Huber IRLS on the
 //!    Sampson distance; when the homography was selected, the essential matrix's own motion is
-//!    refined too and the lower MSAC Sampson cost wins; final inliers and points from the
-//!    refined pose;
+//!    refined too and the lower MSAC Sampson cost wins; the chosen motion then gets a
+//!    maximum-likelihood refit ([`refine_maximum_likelihood`]: Huber on the Sampson distance at
+//!    a noise scale estimated from its own residuals, `3 sigma` gate, re-selection until the
+//!    gated set is stable); final inliers and points from the refined pose;
 //! 6. a median parallax under `min_parallax_deg` flags `low_parallax` (translation direction
 //!    poorly determined); when a rotation alone explains at least 90% of the model's inliers
 //!    the motion is a pure rotation: least-squares rotation of the rays, zero translation.
