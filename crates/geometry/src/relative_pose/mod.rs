@@ -14,8 +14,10 @@
 //!    the one with most points in front of both cameras and closer than the far limit kept;
 //! 5. refinement of `(R, t)` (`t` on the unit sphere) on the inliers by Huber IRLS on the
 //!    Sampson distance; when the homography was selected, the essential matrix's own motion is
-//!    refined too and the lower MSAC Sampson cost wins; final inliers and points from the
-//!    refined pose;
+//!    refined too and the lower MSAC Sampson cost wins; the chosen motion then gets a
+//!    maximum-likelihood refit ([`refine_maximum_likelihood`]: Huber on the Sampson distance at
+//!    a noise scale estimated from its own residuals, `3 sigma` gate, re-selection until the
+//!    gated set is stable); final inliers and points from the refined pose;
 //! 6. a median parallax under `min_parallax_deg` flags `low_parallax` (translation direction
 //!    poorly determined); when a rotation alone explains at least 90% of the model's inliers
 //!    the motion is a pure rotation: least-squares rotation of the rays, zero translation.
@@ -24,7 +26,9 @@ mod estimators;
 mod refine;
 
 pub use estimators::{Correspondences, EssentialEstimator, HomographyEstimator, HomographyModel};
-pub use refine::{refine_relative_pose, tangent_basis, RelState};
+pub use refine::{
+    refine_maximum_likelihood, refine_relative_pose, tangent_basis, MlRefineConfig, RelState,
+};
 use vofront_robust::Loss;
 
 use nalgebra::{
@@ -484,17 +488,15 @@ pub fn estimate_relative_pose(
                 > 1e-3
                 || r.0 .1.dot(&state.1) < 0.9998)
     });
-    // Final polish of the chosen motion: least squares of the Sampson distance on its inliers
-    // (maximum likelihood for Gaussian pixel noise once the outliers are out).
+    // Final maximum-likelihood refit of the chosen motion with the noise scale estimated from
+    // its own residuals.
     let mut state = state;
     if cfg.refine {
-        let e = hat(&state.1) * state.0.matrix();
-        let inl: Vec<usize> = (0..data.len())
-            .filter(|&k| est.residual_sq(&e, k) < thr_sq)
-            .collect();
-        if inl.len() >= MIN_CORRESPONDENCES {
-            state = refine_relative_pose(&data, &inl, focal, sigma, Loss::Squared, state);
-        }
+        let ml = MlRefineConfig {
+            initial_sigma_px: sigma,
+            ..MlRefineConfig::default()
+        };
+        state = refine_maximum_likelihood(&data, focal, &ml, state).0;
     }
     let (ambiguous, alternative) = match rival {
         Some(r) => (true, Some(isometry(&r.0 .0, &r.0 .1))),
