@@ -38,6 +38,14 @@ pub(crate) trait LevelProblem<const M: usize> {
     fn normal_equations(&self, loss: &Loss, scale: f32) -> NormalEquations<M>;
     /// `state` moved by `delta`.
     fn retract(&self, state: &Self::State, delta: &SVector<f64, M>) -> Self::State;
+    /// Called before a trial evaluation: a problem that keeps a second set of buffers saves
+    /// the current evaluation (at the accepted state) here.
+    fn save(&mut self) {}
+    /// Called after a rejected trial: brings back the evaluation at `state` (the one before
+    /// the trial), by default by evaluating again.
+    fn restore(&mut self, state: &Self::State) {
+        self.evaluate(state);
+    }
 }
 
 /// Settings of [`run_level`].
@@ -102,17 +110,23 @@ pub(crate) fn robust_scale(residuals: &[f32], min_sigma: f32) -> f32 {
 /// Mean robust cost `s^2 mean rho(r / s)` over the valid residuals (parallel).
 pub(crate) fn mean_robust_cost(loss: &Loss, scale: f32, residuals: &[f32]) -> f64 {
     let s = f64::from(scale);
-    let (sum, n) = residuals
-        .par_chunks(CHUNK)
-        .map(|chunk| {
-            chunk
-                .iter()
-                .filter(|r| !r.is_nan())
-                .fold((0.0f64, 0usize), |(acc, n), &r| {
-                    (acc + loss.rho(f64::from(r) / s), n + 1)
-                })
-        })
-        .reduce(|| (0.0, 0), |a, b| (a.0 + b.0, a.1 + b.1));
+    let chunk_cost = |chunk: &[f32]| {
+        chunk
+            .iter()
+            .filter(|r| !r.is_nan())
+            .fold((0.0f64, 0usize), |(acc, n), &r| {
+                (acc + loss.rho(f64::from(r) / s), n + 1)
+            })
+    };
+    // A single chunk runs on the calling thread: no hand-over to the pool.
+    let (sum, n) = if residuals.len() <= CHUNK {
+        chunk_cost(residuals)
+    } else {
+        residuals
+            .par_chunks(CHUNK)
+            .map(chunk_cost)
+            .reduce(|| (0.0, 0), |a, b| (a.0 + b.0, a.1 + b.1))
+    };
     if n == 0 {
         f64::INFINITY
     } else {
@@ -163,6 +177,7 @@ pub(crate) fn run_level<P: LevelProblem<M>, const M: usize>(
         let delta = solve_damped(&h, &g, lambda, Damping::Diagonal, cfg.max_condition)?;
         let small = delta.component_mul(&cfg.step_weights).norm() < cfg.min_step;
         let candidate = problem.retract(&state, &delta);
+        problem.save();
         let trial_valid = problem.evaluate(&candidate);
         let trial_cost = if trial_valid >= cfg.min_valid {
             mean_robust_cost(&cfg.loss, scale, problem.residuals())
@@ -187,7 +202,7 @@ pub(crate) fn run_level<P: LevelProblem<M>, const M: usize>(
                 break;
             }
         } else {
-            problem.evaluate(&state);
+            problem.restore(&state);
             if small {
                 reason = Convergence::SmallStep;
                 break;
@@ -227,17 +242,22 @@ where
     let s = f64::from(scale);
     // One accumulator per chunk, filled in place (a fold over single rows would move the
     // `N x N` accumulator at every row).
+    let chunk = |c: usize| {
+        let mut ne = NormalEquations::<M>::new();
+        for i in c * CHUNK..((c + 1) * CHUNK).min(n) {
+            if let Some((j, r)) = row(i) {
+                ne.add(&j, r, loss.weight(r / s));
+            }
+        }
+        ne
+    };
+    // A single chunk runs on the calling thread: no hand-over to the pool.
+    if n <= CHUNK {
+        return chunk(0);
+    }
     (0..n.div_ceil(CHUNK))
         .into_par_iter()
-        .map(|c| {
-            let mut ne = NormalEquations::<M>::new();
-            for i in c * CHUNK..((c + 1) * CHUNK).min(n) {
-                if let Some((j, r)) = row(i) {
-                    ne.add(&j, r, loss.weight(r / s));
-                }
-            }
-            ne
-        })
+        .map(chunk)
         .reduce(NormalEquations::new, |a, b| a.merge(&b))
 }
 

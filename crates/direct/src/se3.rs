@@ -233,13 +233,13 @@ impl Se3Reference {
                 continue;
             }
             let img = &pyr.levels[level];
-            let packed = pack(img);
             let mut problem = Se3Level {
                 reference,
                 size: img.size(),
-                packed: &packed,
+                image: &img.data,
                 residuals: Vec::new(),
                 jacobians: Vec::new(),
+                saved: (Vec::new(), Vec::new()),
             };
             let out = run_level(&mut problem, state, &settings)?;
             iterations[level] = out.iterations;
@@ -273,35 +273,42 @@ impl Se3Reference {
     }
 }
 
-/// `[I, gx, gy, 0]` per pixel of `img` (central-difference gradients).
-fn pack(img: &Plane) -> Vec<[f32; 4]> {
-    let g = img.gradients();
-    img.data
-        .iter()
-        .zip(&g.gx.data)
-        .zip(&g.gy.data)
-        .map(|((&v, &gx), &gy)| [v, gx, gy, 0.0])
-        .collect()
-}
-
-/// Bilinear interpolation of the three channels of a packed plane.
+/// Grey level and central-difference gradient of `img` at `(u, v)`, bilinearly interpolated
+/// from the four surrounding pixels (the same values as interpolating [`Plane::gradients`]),
+/// without building gradient planes. Needs `1 <= u, v` and `u <= w - 2`, `v <= h - 2`.
 #[inline]
-fn sample_packed(packed: &[[f32; 4]], tap: &Bilinear) -> [f32; 3] {
-    let i = tap.index;
-    let (a, b) = (packed[i], packed[i + 1]);
-    let (c, d) = (packed[i + tap.stride], packed[i + tap.stride + 1]);
-    let (fx, fy) = (tap.fx, tap.fy);
+fn sample_with_gradient(img: &[f32], w: usize, h: usize, u: f32, v: f32) -> [f32; 3] {
+    // Top-left tap in [1, w - 3] so that the 4x4 neighbourhood stays inside the plane.
+    let x0 = (u as usize).clamp(1, w - 3);
+    let y0 = (v as usize).clamp(1, h - 3);
+    let (fx, fy) = (u - x0 as f32, v - y0 as f32);
+    let i = y0 * w + x0;
+    let (up, r0, r1, down) = (
+        &img[i - w - 1..],
+        &img[i - 1..],
+        &img[i + w - 1..],
+        &img[i + 2 * w - 1..],
+    );
+    // Rows are offset by one column: index 1 is the tap at x0.
+    let (a, b, c, d) = (r0[1], r0[2], r1[1], r1[2]);
     let (w0, w1, w2, w3) = (
         (1.0 - fx) * (1.0 - fy),
         fx * (1.0 - fy),
         (1.0 - fx) * fy,
         fx * fy,
     );
-    let mut out = [0f32; 3];
-    for (k, o) in out.iter_mut().enumerate() {
-        *o = w0 * a[k] + w1 * b[k] + w2 * c[k] + w3 * d[k];
-    }
-    out
+    let value = w0 * a + w1 * b + w2 * c + w3 * d;
+    let gx = 0.5
+        * (w0 * (r0[2] - r0[0])
+            + w1 * (r0[3] - r0[1])
+            + w2 * (r1[2] - r1[0])
+            + w3 * (r1[3] - r1[1]));
+    let gy = 0.5
+        * (w0 * (r1[1] - up[1])
+            + w1 * (r1[2] - up[2])
+            + w2 * (down[1] - r0[1])
+            + w3 * (down[2] - r0[2]));
+    [value, gx, gy]
 }
 
 /// Pixels of one level: per grid cell, the largest gradient with a valid depth.
@@ -369,11 +376,12 @@ struct Se3Level<'a> {
     reference: &'a RefLevel,
     /// `(width, height)` of the current level.
     size: (usize, usize),
-    /// `[I, gx, gy, 0]` of every pixel of the current level (one cache line per bilinear tap
-    /// row instead of three).
-    packed: &'a [[f32; 4]],
+    /// Grey levels of the current level, row-major.
+    image: &'a [f32],
     residuals: Vec<f32>,
     jacobians: Vec<[f32; 8]>,
+    /// The evaluation at the accepted state while a trial is evaluated.
+    saved: (Vec<f32>, Vec<[f32; 8]>),
 }
 
 impl LevelProblem<8> for Se3Level<'_> {
@@ -391,53 +399,55 @@ impl LevelProblem<8> for Se3Level<'_> {
         let r = self.reference;
         let [fx, fy, cx, cy] = r.k;
         let (w, h) = self.size;
-        let packed = self.packed;
+        let image = self.image;
         let n = r.x.len();
         self.residuals.resize(n, f32::NAN);
         self.jacobians.resize(n, [0.0; 8]);
-        self.residuals
-            .par_chunks_mut(CHUNK)
-            .zip(self.jacobians.par_chunks_mut(CHUNK))
-            .enumerate()
-            .for_each(|(c, (res, jac))| {
-                for k in 0..res.len() {
-                    let i = c * CHUNK + k;
-                    let p = rot * Vector3::new(r.x[i], r.y[i], r.z[i]) + t;
-                    res[k] = f32::NAN;
-                    if p.z <= 1e-3 {
-                        continue;
-                    }
-                    let iz = 1.0 / p.z;
-                    let u = fx * p.x * iz + cx;
-                    let v = fy * p.y * iz + cy;
-                    // Stay one pixel inside, where the gradients are defined.
-                    if !(u >= 1.0 && v >= 1.0 && u <= (w - 2) as f32 && v <= (h - 2) as f32) {
-                        continue;
-                    }
-                    let Some(tap) = Bilinear::new(u, v, w, h) else {
-                        continue;
-                    };
-                    let [value, dx, dy] = sample_packed(packed, &tap);
-                    let resid = value - a * r.value[i] - b;
-                    if !(resid.is_finite() && dx.is_finite() && dy.is_finite()) {
-                        continue;
-                    }
-                    let ax = dx * fx * iz;
-                    let ay = dy * fy * iz;
-                    let az = -(ax * p.x + ay * p.y) * iz;
-                    jac[k] = [
-                        ax,
-                        ay,
-                        az,
-                        p.y * az - p.z * ay,
-                        p.z * ax - p.x * az,
-                        p.x * ay - p.y * ax,
-                        -r.value[i],
-                        -1.0,
-                    ];
-                    res[k] = resid;
+        let fill = |c: usize, res: &mut [f32], jac: &mut [[f32; 8]]| {
+            for k in 0..res.len() {
+                let i = c * CHUNK + k;
+                let p = rot * Vector3::new(r.x[i], r.y[i], r.z[i]) + t;
+                res[k] = f32::NAN;
+                if p.z <= 1e-3 {
+                    continue;
                 }
-            });
+                let iz = 1.0 / p.z;
+                let u = fx * p.x * iz + cx;
+                let v = fy * p.y * iz + cy;
+                // Stay one pixel inside, where the gradients are defined.
+                if !(u >= 1.0 && v >= 1.0 && u <= (w - 2) as f32 && v <= (h - 2) as f32) {
+                    continue;
+                }
+                let [value, dx, dy] = sample_with_gradient(image, w, h, u, v);
+                let resid = value - a * r.value[i] - b;
+                if !(resid.is_finite() && dx.is_finite() && dy.is_finite()) {
+                    continue;
+                }
+                let ax = dx * fx * iz;
+                let ay = dy * fy * iz;
+                let az = -(ax * p.x + ay * p.y) * iz;
+                jac[k] = [
+                    ax,
+                    ay,
+                    az,
+                    p.y * az - p.z * ay,
+                    p.z * ax - p.x * az,
+                    p.x * ay - p.y * ax,
+                    -r.value[i],
+                    -1.0,
+                ];
+                res[k] = resid;
+            }
+        };
+        if n <= CHUNK {
+            fill(0, &mut self.residuals, &mut self.jacobians);
+        } else {
+            self.residuals
+                .par_chunks_mut(CHUNK)
+                .zip(self.jacobians.par_chunks_mut(CHUNK))
+                .enumerate()
+                .for_each(|(c, (res, jac))| fill(c, res, jac));
+        }
         self.residuals.iter().filter(|v| !v.is_nan()).count()
     }
 
@@ -453,6 +463,15 @@ impl LevelProblem<8> for Se3Level<'_> {
                 (j, f64::from(r))
             })
         })
+    }
+
+    fn save(&mut self) {
+        std::mem::swap(&mut self.residuals, &mut self.saved.0);
+        std::mem::swap(&mut self.jacobians, &mut self.saved.1);
+    }
+
+    fn restore(&mut self, _state: &Se3State) {
+        self.save();
     }
 
     fn retract(&self, s: &Se3State, delta: &SVector<f64, 8>) -> Se3State {
