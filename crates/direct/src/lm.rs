@@ -19,6 +19,10 @@ use crate::error::DirectError;
 /// Residuals per rayon task in the parallel reductions.
 pub(crate) const CHUNK: usize = 4096;
 
+/// Up to this many residuals, evaluations and reductions run on the calling thread: handing
+/// a few thousand rows to the pool costs more (thread wake-ups) than it saves.
+pub(crate) const PARALLEL_MIN: usize = 4 * CHUNK;
+
 /// Consecutive rejected steps (each with ten times more damping) that end a level: the
 /// linearisation no longer predicts the cost, which happens at the noise floor of the minimum.
 const MAX_REJECTIONS: usize = 4;
@@ -118,9 +122,11 @@ pub(crate) fn mean_robust_cost(loss: &Loss, scale: f32, residuals: &[f32]) -> f6
                 (acc + loss.rho(f64::from(r) / s), n + 1)
             })
     };
-    // A single chunk runs on the calling thread: no hand-over to the pool.
-    let (sum, n) = if residuals.len() <= CHUNK {
-        chunk_cost(residuals)
+    let (sum, n) = if residuals.len() <= PARALLEL_MIN {
+        residuals
+            .chunks(CHUNK)
+            .map(chunk_cost)
+            .fold((0.0, 0), |a, b| (a.0 + b.0, a.1 + b.1))
     } else {
         residuals
             .par_chunks(CHUNK)
@@ -251,9 +257,10 @@ where
         }
         ne
     };
-    // A single chunk runs on the calling thread: no hand-over to the pool.
-    if n <= CHUNK {
-        return chunk(0);
+    if n <= PARALLEL_MIN {
+        return (0..n.div_ceil(CHUNK))
+            .map(chunk)
+            .fold(NormalEquations::new(), |a, b| a.merge(&b));
     }
     (0..n.div_ceil(CHUNK))
         .into_par_iter()

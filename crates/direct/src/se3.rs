@@ -26,7 +26,7 @@ use vofront_geometry::lie::retract_left;
 use vofront_robust::{Convergence, Loss, NormalEquations};
 
 use crate::error::DirectError;
-use crate::lm::{accumulate, covariance, run_level, LevelProblem, LmSettings, CHUNK};
+use crate::lm::{accumulate, covariance, run_level, LevelProblem, LmSettings, CHUNK, PARALLEL_MIN};
 use crate::plane::{Bilinear, Plane, Pyramid};
 use crate::rgbd::{RgbdFrame, Undistorter};
 
@@ -439,8 +439,15 @@ impl LevelProblem<8> for Se3Level<'_> {
                 res[k] = resid;
             }
         };
-        if n <= CHUNK {
-            fill(0, &mut self.residuals, &mut self.jacobians);
+        if n <= PARALLEL_MIN {
+            for (c, (res, jac)) in self
+                .residuals
+                .chunks_mut(CHUNK)
+                .zip(self.jacobians.chunks_mut(CHUNK))
+                .enumerate()
+            {
+                fill(c, res, jac);
+            }
         } else {
             self.residuals
                 .par_chunks_mut(CHUNK)
