@@ -329,27 +329,40 @@ fn select_level(
         let z = depth0.data[(y * step) * depth0.width + x * step];
         (z >= cfg.min_depth && z <= cfg.max_depth).then_some(z)
     };
-    let mut out = RefLevel {
-        k,
-        ..RefLevel::default()
-    };
-    for cy in (1..h.saturating_sub(1)).step_by(cell) {
-        for cx in (1..w.saturating_sub(1)).step_by(cell) {
-            let mut best: Option<(f32, usize, usize, f32)> = None;
+    let bands: Vec<RefLevel> = (1..h.saturating_sub(1))
+        .step_by(cell)
+        .collect::<Vec<_>>()
+        .into_par_iter()
+        .map(|cy| {
+            let mut out = RefLevel::default();
+            // Per cell of the band: (g2, x, y, z) of the best pixel so far.
+            let cells = (w.saturating_sub(2)).div_ceil(cell);
+            let mut best: Vec<Option<(f32, usize, usize, f32)>> = vec![None; cells];
+            let mut g2 = vec![0f32; w];
             for y in cy..(cy + cell).min(h - 1) {
                 let (up, row, down) = (img.row(y - 1), img.row(y), img.row(y + 1));
-                for x in cx..(cx + cell).min(w - 1) {
-                    // Central differences, as in `Plane::gradients`.
-                    let (gx, gy) = (0.5 * (row[x + 1] - row[x - 1]), 0.5 * (down[x] - up[x]));
-                    let g2 = gx * gx + gy * gy;
-                    if g2 >= t2 && best.map_or(true, |b| g2 > b.0) {
-                        if let Some(z) = depth_at(x, y) {
-                            best = Some((g2, x, y, z));
+                // Central differences, as in `Plane::gradients`; g2[x] for x in 1..w-1.
+                for (((o, (r, l)), d), u) in g2[1..w - 1]
+                    .iter_mut()
+                    .zip(row[2..].iter().zip(&row[..w - 2]))
+                    .zip(&down[1..w - 1])
+                    .zip(&up[1..w - 1])
+                {
+                    let (gx, gy) = (0.5 * (r - l), 0.5 * (d - u));
+                    *o = gx * gx + gy * gy;
+                }
+                for (ci, b) in best.iter_mut().enumerate() {
+                    let x0 = 1 + ci * cell;
+                    for (x, &g) in g2.iter().enumerate().take((x0 + cell).min(w - 1)).skip(x0) {
+                        if g >= t2 && b.map_or(true, |b| g > b.0) {
+                            if let Some(z) = depth_at(x, y) {
+                                *b = Some((g, x, y, z));
+                            }
                         }
                     }
                 }
             }
-            if let Some((_, x, y, z)) = best {
+            for (_, x, y, z) in best.into_iter().flatten() {
                 let value = img.at(x, y);
                 if value.is_finite() {
                     out.x.push((x as f32 - k[2]) / k[0] * z);
@@ -358,7 +371,18 @@ fn select_level(
                     out.value.push(value);
                 }
             }
-        }
+            out
+        })
+        .collect();
+    let mut out = RefLevel {
+        k,
+        ..RefLevel::default()
+    };
+    for band in bands {
+        out.x.extend(band.x);
+        out.y.extend(band.y);
+        out.z.extend(band.z);
+        out.value.extend(band.value);
     }
     out
 }
