@@ -279,17 +279,23 @@ impl Se3Reference {
 #[inline]
 fn sample_with_gradient(img: &[f32], w: usize, h: usize, u: f32, v: f32) -> [f32; 3] {
     // Top-left tap in [1, w - 3] so that the 4x4 neighbourhood stays inside the plane.
-    let x0 = (u as usize).clamp(1, w - 3);
-    let y0 = (v as usize).clamp(1, h - 3);
+    let x0 = (u as usize).min(w - 3).max(1);
+    let y0 = (v as usize).min(h - 3).max(1);
     let (fx, fy) = (u - x0 as f32, v - y0 as f32);
     let i = y0 * w + x0;
-    let (up, r0, r1, down) = (
-        &img[i - w - 1..],
-        &img[i - 1..],
-        &img[i + w - 1..],
-        &img[i + 2 * w - 1..],
-    );
-    // Rows are offset by one column: index 1 is the tap at x0.
+    // Rows y0 - 1 ..= y0 + 2: `r0`, `r1` cover columns x0 - 1 ..= x0 + 2, `up`, `down` x0 ..= x0 + 1
+    // (fixed-size copies: one bounds check per row).
+    let taps = |start: usize| -> [f32; 4] {
+        img[start..start + 4]
+            .try_into()
+            .expect("a slice of four elements")
+    };
+    let pair = |start: usize| -> [f32; 2] {
+        img[start..start + 2]
+            .try_into()
+            .expect("a slice of two elements")
+    };
+    let (up, r0, r1, down) = (pair(i - w), taps(i - 1), taps(i + w - 1), pair(i + 2 * w));
     let (a, b, c, d) = (r0[1], r0[2], r1[1], r1[2]);
     let (w0, w1, w2, w3) = (
         (1.0 - fx) * (1.0 - fy),
@@ -304,10 +310,10 @@ fn sample_with_gradient(img: &[f32], w: usize, h: usize, u: f32, v: f32) -> [f32
             + w2 * (r1[2] - r1[0])
             + w3 * (r1[3] - r1[1]));
     let gy = 0.5
-        * (w0 * (r1[1] - up[1])
-            + w1 * (r1[2] - up[2])
-            + w2 * (down[1] - r0[1])
-            + w3 * (down[2] - r0[2]));
+        * (w0 * (r1[1] - up[0])
+            + w1 * (r1[2] - up[1])
+            + w2 * (down[0] - r0[1])
+            + w3 * (down[1] - r0[2]));
     [value, gx, gy]
 }
 
@@ -427,11 +433,18 @@ impl LevelProblem<8> for Se3Level<'_> {
         let n = r.x.len();
         self.residuals.resize(n, f32::NAN);
         self.jacobians.resize(n, [0.0; 8]);
-        let fill = |c: usize, res: &mut [f32], jac: &mut [[f32; 8]]| {
-            for k in 0..res.len() {
-                let i = c * CHUNK + k;
-                let p = rot * Vector3::new(r.x[i], r.y[i], r.z[i]) + t;
-                res[k] = f32::NAN;
+        // Fills one chunk starting at reference pixel `start`; returns its valid residuals.
+        let fill = |start: usize, res: &mut [f32], jac: &mut [[f32; 8]]| {
+            let end = start + res.len();
+            let points = r.x[start..end]
+                .iter()
+                .zip(&r.y[start..end])
+                .zip(&r.z[start..end])
+                .zip(&r.value[start..end]);
+            let mut valid = 0;
+            for ((o, j), (((&x, &y), &z), &reference)) in res.iter_mut().zip(jac).zip(points) {
+                let p = rot * Vector3::new(x, y, z) + t;
+                *o = f32::NAN;
                 if p.z <= 1e-3 {
                     continue;
                 }
@@ -443,43 +456,43 @@ impl LevelProblem<8> for Se3Level<'_> {
                     continue;
                 }
                 let [value, dx, dy] = sample_with_gradient(image, w, h, u, v);
-                let resid = value - a * r.value[i] - b;
+                let resid = value - a * reference - b;
                 if !(resid.is_finite() && dx.is_finite() && dy.is_finite()) {
                     continue;
                 }
                 let ax = dx * fx * iz;
                 let ay = dy * fy * iz;
                 let az = -(ax * p.x + ay * p.y) * iz;
-                jac[k] = [
+                *j = [
                     ax,
                     ay,
                     az,
                     p.y * az - p.z * ay,
                     p.z * ax - p.x * az,
                     p.x * ay - p.y * ax,
-                    -r.value[i],
+                    -reference,
                     -1.0,
                 ];
-                res[k] = resid;
+                *o = resid;
+                valid += 1;
             }
+            valid
         };
         if n <= PARALLEL_MIN {
-            for (c, (res, jac)) in self
-                .residuals
+            self.residuals
                 .chunks_mut(CHUNK)
                 .zip(self.jacobians.chunks_mut(CHUNK))
                 .enumerate()
-            {
-                fill(c, res, jac);
-            }
+                .map(|(c, (res, jac))| fill(c * CHUNK, res, jac))
+                .sum()
         } else {
             self.residuals
                 .par_chunks_mut(CHUNK)
                 .zip(self.jacobians.par_chunks_mut(CHUNK))
                 .enumerate()
-                .for_each(|(c, (res, jac))| fill(c, res, jac));
+                .map(|(c, (res, jac))| fill(c * CHUNK, res, jac))
+                .sum()
         }
-        self.residuals.iter().filter(|v| !v.is_nan()).count()
     }
 
     fn residuals(&self) -> &[f32] {
