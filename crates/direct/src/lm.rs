@@ -19,9 +19,9 @@ use crate::error::DirectError;
 /// Residuals per rayon task in the parallel reductions.
 pub(crate) const CHUNK: usize = 4096;
 
-/// Up to this many residuals, evaluations and reductions run on the calling thread: handing
-/// a few thousand rows to the pool costs more (thread wake-ups) than it saves.
-pub(crate) const PARALLEL_MIN: usize = 4 * CHUNK;
+/// Up to this many residuals the SE(3) evaluations and reductions run on the calling thread:
+/// handing a few thousand rows to the pool costs more (thread wake-ups) than it saves.
+pub(crate) const SERIAL_MAX_SE3: usize = 4 * CHUNK;
 
 /// Consecutive rejected steps (each with ten times more damping) that end a level: the
 /// linearisation no longer predicts the cost, which happens at the noise floor of the minimum.
@@ -73,6 +73,8 @@ pub(crate) struct LmSettings<const M: usize> {
     pub fixed: [bool; M],
     /// Fewest valid residuals accepted.
     pub min_valid: usize,
+    /// Up to this many residuals the reductions run on the calling thread (at least one chunk).
+    pub serial_max: usize,
 }
 
 /// Result of one level.
@@ -112,7 +114,12 @@ pub(crate) fn robust_scale(residuals: &[f32], min_sigma: f32) -> f32 {
 }
 
 /// Mean robust cost `s^2 mean rho(r / s)` over the valid residuals (parallel).
-pub(crate) fn mean_robust_cost(loss: &Loss, scale: f32, residuals: &[f32]) -> f64 {
+pub(crate) fn mean_robust_cost(
+    loss: &Loss,
+    scale: f32,
+    residuals: &[f32],
+    serial_max: usize,
+) -> f64 {
     let s = f64::from(scale);
     let chunk_cost = |chunk: &[f32]| {
         chunk
@@ -122,7 +129,7 @@ pub(crate) fn mean_robust_cost(loss: &Loss, scale: f32, residuals: &[f32]) -> f6
                 (acc + loss.rho(f64::from(r) / s), n + 1)
             })
     };
-    let (sum, n) = if residuals.len() <= PARALLEL_MIN {
+    let (sum, n) = if residuals.len() <= serial_max.max(CHUNK) {
         residuals
             .chunks(CHUNK)
             .map(chunk_cost)
@@ -171,7 +178,7 @@ pub(crate) fn run_level<P: LevelProblem<M>, const M: usize>(
         });
     }
     let mut scale = robust_scale(problem.residuals(), cfg.min_sigma);
-    let mut cost = mean_robust_cost(&cfg.loss, scale, problem.residuals());
+    let mut cost = mean_robust_cost(&cfg.loss, scale, problem.residuals(), cfg.serial_max);
     let mut ne = problem.normal_equations(&cfg.loss, scale);
     let mut lambda = 0.0;
     let mut rejections = 0;
@@ -186,7 +193,7 @@ pub(crate) fn run_level<P: LevelProblem<M>, const M: usize>(
         problem.save();
         let trial_valid = problem.evaluate(&candidate);
         let trial_cost = if trial_valid >= cfg.min_valid {
-            mean_robust_cost(&cfg.loss, scale, problem.residuals())
+            mean_robust_cost(&cfg.loss, scale, problem.residuals(), cfg.serial_max)
         } else {
             f64::INFINITY
         };
@@ -197,7 +204,7 @@ pub(crate) fn run_level<P: LevelProblem<M>, const M: usize>(
             rejections = 0;
             lambda *= 0.1;
             scale = robust_scale(problem.residuals(), cfg.min_sigma);
-            cost = mean_robust_cost(&cfg.loss, scale, problem.residuals());
+            cost = mean_robust_cost(&cfg.loss, scale, problem.residuals(), cfg.serial_max);
             ne = problem.normal_equations(&cfg.loss, scale);
             if small {
                 reason = Convergence::SmallStep;
@@ -235,11 +242,13 @@ pub(crate) fn run_level<P: LevelProblem<M>, const M: usize>(
 }
 
 /// Parallel fold of per-residual rows into normal equations: `rows(i)` yields
-/// `(J_i, r_i)` for valid residual `i`, weighted by `loss` at `scale`.
+/// `(J_i, r_i)` for valid residual `i`, weighted by `loss` at `scale`; on the calling thread
+/// up to `serial_max` rows (at least one chunk).
 pub(crate) fn accumulate<const M: usize, F>(
     n: usize,
     loss: &Loss,
     scale: f32,
+    serial_max: usize,
     row: F,
 ) -> NormalEquations<M>
 where
@@ -257,7 +266,7 @@ where
         }
         ne
     };
-    if n <= PARALLEL_MIN {
+    if n <= serial_max.max(CHUNK) {
         return (0..n.div_ceil(CHUNK))
             .map(chunk)
             .fold(NormalEquations::new(), |a, b| a.merge(&b));

@@ -26,7 +26,9 @@ use vofront_geometry::lie::retract_left;
 use vofront_robust::{Convergence, Loss, NormalEquations};
 
 use crate::error::DirectError;
-use crate::lm::{accumulate, covariance, run_level, LevelProblem, LmSettings, CHUNK, PARALLEL_MIN};
+use crate::lm::{
+    accumulate, covariance, run_level, LevelProblem, LmSettings, CHUNK, SERIAL_MAX_SE3,
+};
 use crate::plane::{Bilinear, Plane, Pyramid};
 use crate::rgbd::{RgbdFrame, Undistorter};
 
@@ -226,6 +228,7 @@ impl Se3Reference {
             max_condition: cfg.max_condition,
             fixed,
             min_valid: MIN_VALID,
+            serial_max: SERIAL_MAX_SE3,
         };
         for level in (0..pyr.levels.len()).rev() {
             let reference = &self.levels[level];
@@ -478,7 +481,7 @@ impl LevelProblem<8> for Se3Level<'_> {
             }
             valid
         };
-        if n <= PARALLEL_MIN {
+        if n <= SERIAL_MAX_SE3 {
             self.residuals
                 .chunks_mut(CHUNK)
                 .zip(self.jacobians.chunks_mut(CHUNK))
@@ -500,7 +503,7 @@ impl LevelProblem<8> for Se3Level<'_> {
     }
 
     fn normal_equations(&self, loss: &Loss, scale: f32) -> NormalEquations<8> {
-        accumulate(self.residuals.len(), loss, scale, |i| {
+        accumulate(self.residuals.len(), loss, scale, SERIAL_MAX_SE3, |i| {
             let r = self.residuals[i];
             (!r.is_nan()).then(|| {
                 let j = SVector::<f64, 8>::from(self.jacobians[i].map(f64::from));
