@@ -29,7 +29,7 @@ use crate::error::DirectError;
 use crate::lm::{
     accumulate, covariance, run_level, LevelProblem, LmSettings, CHUNK, SERIAL_MAX_SE3,
 };
-use crate::plane::{Bilinear, Plane, Pyramid};
+use crate::plane::{Bilinear, Plane};
 use crate::rgbd::{RgbdFrame, Undistorter};
 
 /// Smallest side of the coarsest pyramid level, pixels.
@@ -144,10 +144,10 @@ impl Se3Reference {
                 "levels, pixel_budget and max_iterations must be positive",
             ));
         }
-        let pyr = Pyramid::new(frame.image.clone(), cfg.levels, MIN_LEVEL_SIDE);
+        let coarse = coarse_levels(&frame.image, cfg.levels);
         let p = frame.pinhole;
-        let mut levels = Vec::with_capacity(pyr.levels.len());
-        for (l, img) in pyr.levels.iter().enumerate() {
+        let mut levels = Vec::with_capacity(coarse.len() + 1);
+        for (l, img) in std::iter::once(&frame.image).chain(&coarse).enumerate() {
             let s = 0.5f32.powi(l as i32);
             let k = [
                 p.fx as f32 * s,
@@ -203,11 +203,15 @@ impl Se3Reference {
                 found: current.size(),
             });
         }
+        let undistorted;
         let current = match &self.undistorter {
-            Some(u) => u.undistort_image(current)?,
-            None => current.clone(),
+            Some(u) => {
+                undistorted = u.undistort_image(current)?;
+                &undistorted
+            }
+            None => current,
         };
-        let pyr = Pyramid::new(current, self.levels.len(), MIN_LEVEL_SIDE);
+        let coarse = coarse_levels(current, self.levels.len());
         let mut state = Se3State {
             pose: vofront_geometry::lie::normalized(prior),
             a: 1.0,
@@ -230,12 +234,16 @@ impl Se3Reference {
             min_valid: MIN_VALID,
             serial_max: SERIAL_MAX_SE3,
         };
-        for level in (0..pyr.levels.len()).rev() {
+        for level in (0..=coarse.len()).rev() {
             let reference = &self.levels[level];
             if reference.x.len() < MIN_VALID && level > 0 {
                 continue;
             }
-            let img = &pyr.levels[level];
+            let img = if level == 0 {
+                current
+            } else {
+                &coarse[level - 1]
+            };
             let mut problem = Se3Level {
                 reference,
                 size: img.size(),
@@ -274,6 +282,20 @@ impl Se3Reference {
         }
         unreachable!("the loop returns at level 0")
     }
+}
+
+/// Levels `1..levels` of the pyramid of `base` (as [`crate::plane::Pyramid::new`] builds them),
+/// without copying `base`.
+fn coarse_levels(base: &Plane, levels: usize) -> Vec<Plane> {
+    let mut out: Vec<Plane> = Vec::with_capacity(levels.saturating_sub(1));
+    while out.len() + 1 < levels.max(1) {
+        let last = out.last().unwrap_or(base);
+        if last.width.div_ceil(2) < MIN_LEVEL_SIDE || last.height.div_ceil(2) < MIN_LEVEL_SIDE {
+            break;
+        }
+        out.push(last.pyr_down());
+    }
+    out
 }
 
 /// Grey level and central-difference gradient of `img` at `(u, v)`, bilinearly interpolated
