@@ -628,3 +628,45 @@ pub fn photometric_residual_map(
     });
     Ok(out)
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Float tolerance: the same products summed in a different order.
+    const TOLERANCE: f32 = 1e-3;
+
+    #[test]
+    fn on_the_fly_gradient_matches_interpolated_gradient_planes() {
+        let (w, h) = (23, 17);
+        let data = (0..w * h)
+            .map(|i| {
+                let (x, y) = ((i % w) as f32, (i / w) as f32);
+                100.0 + 40.0 * (0.7 * x).sin() * (0.45 * y).cos() + 3.0 * x - 2.0 * y
+            })
+            .collect();
+        let img = Plane::new(w, h, data).expect("valid plane");
+        let g = img.gradients();
+        // Interior points, the lowest and highest allowed coordinates included.
+        let (hi_u, hi_v) = ((w - 2) as f32, (h - 2) as f32);
+        let mut points = vec![(1.0, 1.0), (hi_u, hi_v), (hi_u, 1.0), (1.0, hi_v)];
+        points.extend((0..50).map(|k| {
+            let t = k as f32 / 49.0;
+            (1.0 + t * (hi_u - 1.0), 1.0 + (1.0 - t * t) * (hi_v - 1.0))
+        }));
+        for (u, v) in points {
+            let [value, gx, gy] = sample_with_gradient(&img.data, w, h, u, v);
+            let expected = [
+                img.sample(u, v).expect("inside"),
+                g.gx.sample(u, v).expect("inside"),
+                g.gy.sample(u, v).expect("inside"),
+            ];
+            for (got, want) in [value, gx, gy].into_iter().zip(expected) {
+                assert!(
+                    (got - want).abs() < TOLERANCE,
+                    "({u}, {v}): {got} vs {want}"
+                );
+            }
+        }
+    }
+}
