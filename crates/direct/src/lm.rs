@@ -19,6 +19,10 @@ use crate::error::DirectError;
 /// Residuals per rayon task in the parallel reductions.
 pub(crate) const CHUNK: usize = 4096;
 
+/// Up to this many residuals the SE(3) evaluations and reductions run on the calling thread:
+/// handing a few thousand rows to the pool costs more (thread wake-ups) than it saves.
+pub(crate) const SERIAL_MAX_SE3: usize = 4 * CHUNK;
+
 /// Consecutive rejected steps (each with ten times more damping) that end a level: the
 /// linearisation no longer predicts the cost, which happens at the noise floor of the minimum.
 const MAX_REJECTIONS: usize = 4;
@@ -38,6 +42,14 @@ pub(crate) trait LevelProblem<const M: usize> {
     fn normal_equations(&self, loss: &Loss, scale: f32) -> NormalEquations<M>;
     /// `state` moved by `delta`.
     fn retract(&self, state: &Self::State, delta: &SVector<f64, M>) -> Self::State;
+    /// Called before a trial evaluation: a problem that keeps a second set of buffers saves
+    /// the current evaluation (at the accepted state) here.
+    fn save(&mut self) {}
+    /// Called after a rejected trial: brings back the evaluation at `state` (the one before
+    /// the trial), by default by evaluating again.
+    fn restore(&mut self, state: &Self::State) {
+        self.evaluate(state);
+    }
 }
 
 /// Settings of [`run_level`].
@@ -61,6 +73,8 @@ pub(crate) struct LmSettings<const M: usize> {
     pub fixed: [bool; M],
     /// Fewest valid residuals accepted.
     pub min_valid: usize,
+    /// Up to this many residuals the reductions run on the calling thread (at least one chunk).
+    pub serial_max: usize,
 }
 
 /// Result of one level.
@@ -100,19 +114,32 @@ pub(crate) fn robust_scale(residuals: &[f32], min_sigma: f32) -> f32 {
 }
 
 /// Mean robust cost `s^2 mean rho(r / s)` over the valid residuals (parallel).
-pub(crate) fn mean_robust_cost(loss: &Loss, scale: f32, residuals: &[f32]) -> f64 {
+pub(crate) fn mean_robust_cost(
+    loss: &Loss,
+    scale: f32,
+    residuals: &[f32],
+    serial_max: usize,
+) -> f64 {
     let s = f64::from(scale);
-    let (sum, n) = residuals
-        .par_chunks(CHUNK)
-        .map(|chunk| {
-            chunk
-                .iter()
-                .filter(|r| !r.is_nan())
-                .fold((0.0f64, 0usize), |(acc, n), &r| {
-                    (acc + loss.rho(f64::from(r) / s), n + 1)
-                })
-        })
-        .reduce(|| (0.0, 0), |a, b| (a.0 + b.0, a.1 + b.1));
+    let chunk_cost = |chunk: &[f32]| {
+        chunk
+            .iter()
+            .filter(|r| !r.is_nan())
+            .fold((0.0f64, 0usize), |(acc, n), &r| {
+                (acc + loss.rho(f64::from(r) / s), n + 1)
+            })
+    };
+    let (sum, n) = if residuals.len() <= serial_max.max(CHUNK) {
+        residuals
+            .chunks(CHUNK)
+            .map(chunk_cost)
+            .fold((0.0, 0), |a, b| (a.0 + b.0, a.1 + b.1))
+    } else {
+        residuals
+            .par_chunks(CHUNK)
+            .map(chunk_cost)
+            .reduce(|| (0.0, 0), |a, b| (a.0 + b.0, a.1 + b.1))
+    };
     if n == 0 {
         f64::INFINITY
     } else {
@@ -151,7 +178,7 @@ pub(crate) fn run_level<P: LevelProblem<M>, const M: usize>(
         });
     }
     let mut scale = robust_scale(problem.residuals(), cfg.min_sigma);
-    let mut cost = mean_robust_cost(&cfg.loss, scale, problem.residuals());
+    let mut cost = mean_robust_cost(&cfg.loss, scale, problem.residuals(), cfg.serial_max);
     let mut ne = problem.normal_equations(&cfg.loss, scale);
     let mut lambda = 0.0;
     let mut rejections = 0;
@@ -163,9 +190,10 @@ pub(crate) fn run_level<P: LevelProblem<M>, const M: usize>(
         let delta = solve_damped(&h, &g, lambda, Damping::Diagonal, cfg.max_condition)?;
         let small = delta.component_mul(&cfg.step_weights).norm() < cfg.min_step;
         let candidate = problem.retract(&state, &delta);
+        problem.save();
         let trial_valid = problem.evaluate(&candidate);
         let trial_cost = if trial_valid >= cfg.min_valid {
-            mean_robust_cost(&cfg.loss, scale, problem.residuals())
+            mean_robust_cost(&cfg.loss, scale, problem.residuals(), cfg.serial_max)
         } else {
             f64::INFINITY
         };
@@ -176,7 +204,7 @@ pub(crate) fn run_level<P: LevelProblem<M>, const M: usize>(
             rejections = 0;
             lambda *= 0.1;
             scale = robust_scale(problem.residuals(), cfg.min_sigma);
-            cost = mean_robust_cost(&cfg.loss, scale, problem.residuals());
+            cost = mean_robust_cost(&cfg.loss, scale, problem.residuals(), cfg.serial_max);
             ne = problem.normal_equations(&cfg.loss, scale);
             if small {
                 reason = Convergence::SmallStep;
@@ -187,7 +215,7 @@ pub(crate) fn run_level<P: LevelProblem<M>, const M: usize>(
                 break;
             }
         } else {
-            problem.evaluate(&state);
+            problem.restore(&state);
             if small {
                 reason = Convergence::SmallStep;
                 break;
@@ -214,11 +242,13 @@ pub(crate) fn run_level<P: LevelProblem<M>, const M: usize>(
 }
 
 /// Parallel fold of per-residual rows into normal equations: `rows(i)` yields
-/// `(J_i, r_i)` for valid residual `i`, weighted by `loss` at `scale`.
+/// `(J_i, r_i)` for valid residual `i`, weighted by `loss` at `scale`; on the calling thread
+/// up to `serial_max` rows (at least one chunk).
 pub(crate) fn accumulate<const M: usize, F>(
     n: usize,
     loss: &Loss,
     scale: f32,
+    serial_max: usize,
     row: F,
 ) -> NormalEquations<M>
 where
@@ -227,17 +257,23 @@ where
     let s = f64::from(scale);
     // One accumulator per chunk, filled in place (a fold over single rows would move the
     // `N x N` accumulator at every row).
+    let chunk = |c: usize| {
+        let mut ne = NormalEquations::<M>::new();
+        for i in c * CHUNK..((c + 1) * CHUNK).min(n) {
+            if let Some((j, r)) = row(i) {
+                ne.add(&j, r, loss.weight(r / s));
+            }
+        }
+        ne
+    };
+    if n <= serial_max.max(CHUNK) {
+        return (0..n.div_ceil(CHUNK))
+            .map(chunk)
+            .fold(NormalEquations::new(), |a, b| a.merge(&b));
+    }
     (0..n.div_ceil(CHUNK))
         .into_par_iter()
-        .map(|c| {
-            let mut ne = NormalEquations::<M>::new();
-            for i in c * CHUNK..((c + 1) * CHUNK).min(n) {
-                if let Some((j, r)) = row(i) {
-                    ne.add(&j, r, loss.weight(r / s));
-                }
-            }
-            ne
-        })
+        .map(chunk)
         .reduce(NormalEquations::new, |a, b| a.merge(&b))
 }
 

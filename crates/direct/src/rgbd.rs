@@ -18,6 +18,9 @@ use crate::plane::{Bilinear, Plane};
 /// Smallest image side accepted for an RGB-D frame, pixels.
 pub const MIN_RGBD_SIDE: usize = 16;
 
+/// Output pixels per parallel task of a remap.
+const REMAP_BLOCK: usize = 32 * 1024;
+
 /// The undistortion remap of one camera at one image size.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Undistorter {
@@ -64,6 +67,22 @@ impl Undistorter {
         })
     }
 
+    /// `value(tap)` of every output pixel, in parallel blocks of rows.
+    fn remap<F>(&self, value: F) -> Vec<f32>
+    where
+        F: Fn(&(u32, f32, f32)) -> f32 + Sync,
+    {
+        let mut out = vec![0f32; self.taps.len()];
+        out.par_chunks_mut(REMAP_BLOCK)
+            .zip(self.taps.par_chunks(REMAP_BLOCK))
+            .for_each(|(out, taps)| {
+                for (o, tap) in out.iter_mut().zip(taps) {
+                    *o = value(tap);
+                }
+            });
+        out
+    }
+
     fn check(&self, img: &Plane) -> Result<(), DirectError> {
         if img.size() == (self.width, self.height) {
             Ok(())
@@ -79,20 +98,15 @@ impl Undistorter {
     pub fn undistort_image(&self, img: &Plane) -> Result<Plane, DirectError> {
         self.check(img)?;
         let (w, d) = (img.width, &img.data);
-        let data = self
-            .taps
-            .par_iter()
-            .with_min_len(4096)
-            .map(|&(index, fx, fy)| {
-                if index == u32::MAX {
-                    return f32::NAN;
-                }
-                let i = index as usize;
-                let top = d[i] + fx * (d[i + 1] - d[i]);
-                let bottom = d[i + w] + fx * (d[i + w + 1] - d[i + w]);
-                top + fy * (bottom - top)
-            })
-            .collect();
+        let data = self.remap(|&(index, fx, fy)| {
+            if index == u32::MAX {
+                return f32::NAN;
+            }
+            let i = index as usize;
+            let top = d[i] + fx * (d[i + 1] - d[i]);
+            let bottom = d[i + w] + fx * (d[i + w + 1] - d[i + w]);
+            top + fy * (bottom - top)
+        });
         Plane::new(self.width, self.height, data)
     }
 
@@ -100,18 +114,13 @@ impl Undistorter {
     pub fn undistort_depth(&self, depth: &Plane) -> Result<Plane, DirectError> {
         self.check(depth)?;
         let (w, d) = (depth.width, &depth.data);
-        let data = self
-            .taps
-            .par_iter()
-            .with_min_len(4096)
-            .map(|&(index, fx, fy)| {
-                if index == u32::MAX {
-                    return 0.0;
-                }
-                let i = index as usize + usize::from(fx >= 0.5) + w * usize::from(fy >= 0.5);
-                d[i]
-            })
-            .collect();
+        let data = self.remap(|&(index, fx, fy)| {
+            if index == u32::MAX {
+                return 0.0;
+            }
+            let i = index as usize + usize::from(fx >= 0.5) + w * usize::from(fy >= 0.5);
+            d[i]
+        });
         Plane::new(self.width, self.height, data)
     }
 }

@@ -26,8 +26,10 @@ use vofront_geometry::lie::retract_left;
 use vofront_robust::{Convergence, Loss, NormalEquations};
 
 use crate::error::DirectError;
-use crate::lm::{accumulate, covariance, run_level, LevelProblem, LmSettings, CHUNK};
-use crate::plane::{Bilinear, Plane, Pyramid};
+use crate::lm::{
+    accumulate, covariance, run_level, LevelProblem, LmSettings, CHUNK, SERIAL_MAX_SE3,
+};
+use crate::plane::{Bilinear, Plane};
 use crate::rgbd::{RgbdFrame, Undistorter};
 
 /// Smallest side of the coarsest pyramid level, pixels.
@@ -142,10 +144,10 @@ impl Se3Reference {
                 "levels, pixel_budget and max_iterations must be positive",
             ));
         }
-        let pyr = Pyramid::new(frame.image.clone(), cfg.levels, MIN_LEVEL_SIDE);
+        let coarse = coarse_levels(&frame.image, cfg.levels);
         let p = frame.pinhole;
-        let mut levels = Vec::with_capacity(pyr.levels.len());
-        for (l, img) in pyr.levels.iter().enumerate() {
+        let mut levels = Vec::with_capacity(coarse.len() + 1);
+        for (l, img) in std::iter::once(&frame.image).chain(&coarse).enumerate() {
             let s = 0.5f32.powi(l as i32);
             let k = [
                 p.fx as f32 * s,
@@ -201,11 +203,15 @@ impl Se3Reference {
                 found: current.size(),
             });
         }
+        let undistorted;
         let current = match &self.undistorter {
-            Some(u) => u.undistort_image(current)?,
-            None => current.clone(),
+            Some(u) => {
+                undistorted = u.undistort_image(current)?;
+                &undistorted
+            }
+            None => current,
         };
-        let pyr = Pyramid::new(current, self.levels.len(), MIN_LEVEL_SIDE);
+        let coarse = coarse_levels(current, self.levels.len());
         let mut state = Se3State {
             pose: vofront_geometry::lie::normalized(prior),
             a: 1.0,
@@ -226,20 +232,25 @@ impl Se3Reference {
             max_condition: cfg.max_condition,
             fixed,
             min_valid: MIN_VALID,
+            serial_max: SERIAL_MAX_SE3,
         };
-        for level in (0..pyr.levels.len()).rev() {
+        for level in (0..=coarse.len()).rev() {
             let reference = &self.levels[level];
             if reference.x.len() < MIN_VALID && level > 0 {
                 continue;
             }
-            let img = &pyr.levels[level];
-            let packed = pack(img);
+            let img = if level == 0 {
+                current
+            } else {
+                &coarse[level - 1]
+            };
             let mut problem = Se3Level {
                 reference,
                 size: img.size(),
-                packed: &packed,
+                image: &img.data,
                 residuals: Vec::new(),
                 jacobians: Vec::new(),
+                saved: (Vec::new(), Vec::new()),
             };
             let out = run_level(&mut problem, state, &settings)?;
             iterations[level] = out.iterations;
@@ -273,35 +284,62 @@ impl Se3Reference {
     }
 }
 
-/// `[I, gx, gy, 0]` per pixel of `img` (central-difference gradients).
-fn pack(img: &Plane) -> Vec<[f32; 4]> {
-    let g = img.gradients();
-    img.data
-        .iter()
-        .zip(&g.gx.data)
-        .zip(&g.gy.data)
-        .map(|((&v, &gx), &gy)| [v, gx, gy, 0.0])
-        .collect()
+/// Levels `1..levels` of the pyramid of `base` (as [`crate::plane::Pyramid::new`] builds them),
+/// without copying `base`.
+fn coarse_levels(base: &Plane, levels: usize) -> Vec<Plane> {
+    let mut out: Vec<Plane> = Vec::with_capacity(levels.saturating_sub(1));
+    while out.len() + 1 < levels.max(1) {
+        let last = out.last().unwrap_or(base);
+        if last.width.div_ceil(2) < MIN_LEVEL_SIDE || last.height.div_ceil(2) < MIN_LEVEL_SIDE {
+            break;
+        }
+        out.push(last.pyr_down());
+    }
+    out
 }
 
-/// Bilinear interpolation of the three channels of a packed plane.
+/// Grey level and central-difference gradient of `img` at `(u, v)`, bilinearly interpolated
+/// from the four surrounding pixels (the same values as interpolating [`Plane::gradients`]),
+/// without building gradient planes. Needs `1 <= u, v` and `u <= w - 2`, `v <= h - 2`.
 #[inline]
-fn sample_packed(packed: &[[f32; 4]], tap: &Bilinear) -> [f32; 3] {
-    let i = tap.index;
-    let (a, b) = (packed[i], packed[i + 1]);
-    let (c, d) = (packed[i + tap.stride], packed[i + tap.stride + 1]);
-    let (fx, fy) = (tap.fx, tap.fy);
+fn sample_with_gradient(img: &[f32], w: usize, h: usize, u: f32, v: f32) -> [f32; 3] {
+    // Top-left tap in [1, w - 3] so that the 4x4 neighbourhood stays inside the plane.
+    let x0 = (u as usize).min(w - 3).max(1);
+    let y0 = (v as usize).min(h - 3).max(1);
+    let (fx, fy) = (u - x0 as f32, v - y0 as f32);
+    let i = y0 * w + x0;
+    // Rows y0 - 1 ..= y0 + 2: `r0`, `r1` cover columns x0 - 1 ..= x0 + 2, `up`, `down` x0 ..= x0 + 1
+    // (fixed-size copies: one bounds check per row).
+    let taps = |start: usize| -> [f32; 4] {
+        img[start..start + 4]
+            .try_into()
+            .expect("a slice of four elements")
+    };
+    let pair = |start: usize| -> [f32; 2] {
+        img[start..start + 2]
+            .try_into()
+            .expect("a slice of two elements")
+    };
+    let (up, r0, r1, down) = (pair(i - w), taps(i - 1), taps(i + w - 1), pair(i + 2 * w));
+    let (a, b, c, d) = (r0[1], r0[2], r1[1], r1[2]);
     let (w0, w1, w2, w3) = (
         (1.0 - fx) * (1.0 - fy),
         fx * (1.0 - fy),
         (1.0 - fx) * fy,
         fx * fy,
     );
-    let mut out = [0f32; 3];
-    for (k, o) in out.iter_mut().enumerate() {
-        *o = w0 * a[k] + w1 * b[k] + w2 * c[k] + w3 * d[k];
-    }
-    out
+    let value = w0 * a + w1 * b + w2 * c + w3 * d;
+    let gx = 0.5
+        * (w0 * (r0[2] - r0[0])
+            + w1 * (r0[3] - r0[1])
+            + w2 * (r1[2] - r1[0])
+            + w3 * (r1[3] - r1[1]));
+    let gy = 0.5
+        * (w0 * (r1[1] - up[0])
+            + w1 * (r1[2] - up[1])
+            + w2 * (down[0] - r0[1])
+            + w3 * (down[1] - r0[2]));
+    [value, gx, gy]
 }
 
 /// Pixels of one level: per grid cell, the largest gradient with a valid depth.
@@ -322,27 +360,40 @@ fn select_level(
         let z = depth0.data[(y * step) * depth0.width + x * step];
         (z >= cfg.min_depth && z <= cfg.max_depth).then_some(z)
     };
-    let mut out = RefLevel {
-        k,
-        ..RefLevel::default()
-    };
-    for cy in (1..h.saturating_sub(1)).step_by(cell) {
-        for cx in (1..w.saturating_sub(1)).step_by(cell) {
-            let mut best: Option<(f32, usize, usize, f32)> = None;
+    let bands: Vec<RefLevel> = (1..h.saturating_sub(1))
+        .step_by(cell)
+        .collect::<Vec<_>>()
+        .into_par_iter()
+        .map(|cy| {
+            let mut out = RefLevel::default();
+            // Per cell of the band: (g2, x, y, z) of the best pixel so far.
+            let cells = (w.saturating_sub(2)).div_ceil(cell);
+            let mut best: Vec<Option<(f32, usize, usize, f32)>> = vec![None; cells];
+            let mut g2 = vec![0f32; w];
             for y in cy..(cy + cell).min(h - 1) {
                 let (up, row, down) = (img.row(y - 1), img.row(y), img.row(y + 1));
-                for x in cx..(cx + cell).min(w - 1) {
-                    // Central differences, as in `Plane::gradients`.
-                    let (gx, gy) = (0.5 * (row[x + 1] - row[x - 1]), 0.5 * (down[x] - up[x]));
-                    let g2 = gx * gx + gy * gy;
-                    if g2 >= t2 && best.map_or(true, |b| g2 > b.0) {
-                        if let Some(z) = depth_at(x, y) {
-                            best = Some((g2, x, y, z));
+                // Central differences, as in `Plane::gradients`; g2[x] for x in 1..w-1.
+                for (((o, (r, l)), d), u) in g2[1..w - 1]
+                    .iter_mut()
+                    .zip(row[2..].iter().zip(&row[..w - 2]))
+                    .zip(&down[1..w - 1])
+                    .zip(&up[1..w - 1])
+                {
+                    let (gx, gy) = (0.5 * (r - l), 0.5 * (d - u));
+                    *o = gx * gx + gy * gy;
+                }
+                for (ci, b) in best.iter_mut().enumerate() {
+                    let x0 = 1 + ci * cell;
+                    for (x, &g) in g2.iter().enumerate().take((x0 + cell).min(w - 1)).skip(x0) {
+                        if g >= t2 && b.map_or(true, |b| g > b.0) {
+                            if let Some(z) = depth_at(x, y) {
+                                *b = Some((g, x, y, z));
+                            }
                         }
                     }
                 }
             }
-            if let Some((_, x, y, z)) = best {
+            for (_, x, y, z) in best.into_iter().flatten() {
                 let value = img.at(x, y);
                 if value.is_finite() {
                     out.x.push((x as f32 - k[2]) / k[0] * z);
@@ -351,7 +402,18 @@ fn select_level(
                     out.value.push(value);
                 }
             }
-        }
+            out
+        })
+        .collect();
+    let mut out = RefLevel {
+        k,
+        ..RefLevel::default()
+    };
+    for band in bands {
+        out.x.extend(band.x);
+        out.y.extend(band.y);
+        out.z.extend(band.z);
+        out.value.extend(band.value);
     }
     out
 }
@@ -369,11 +431,12 @@ struct Se3Level<'a> {
     reference: &'a RefLevel,
     /// `(width, height)` of the current level.
     size: (usize, usize),
-    /// `[I, gx, gy, 0]` of every pixel of the current level (one cache line per bilinear tap
-    /// row instead of three).
-    packed: &'a [[f32; 4]],
+    /// Grey levels of the current level, row-major.
+    image: &'a [f32],
     residuals: Vec<f32>,
     jacobians: Vec<[f32; 8]>,
+    /// The evaluation at the accepted state while a trial is evaluated.
+    saved: (Vec<f32>, Vec<[f32; 8]>),
 }
 
 impl LevelProblem<8> for Se3Level<'_> {
@@ -391,54 +454,70 @@ impl LevelProblem<8> for Se3Level<'_> {
         let r = self.reference;
         let [fx, fy, cx, cy] = r.k;
         let (w, h) = self.size;
-        let packed = self.packed;
+        let image = self.image;
         let n = r.x.len();
         self.residuals.resize(n, f32::NAN);
         self.jacobians.resize(n, [0.0; 8]);
-        self.residuals
-            .par_chunks_mut(CHUNK)
-            .zip(self.jacobians.par_chunks_mut(CHUNK))
-            .enumerate()
-            .for_each(|(c, (res, jac))| {
-                for k in 0..res.len() {
-                    let i = c * CHUNK + k;
-                    let p = rot * Vector3::new(r.x[i], r.y[i], r.z[i]) + t;
-                    res[k] = f32::NAN;
-                    if p.z <= 1e-3 {
-                        continue;
-                    }
-                    let iz = 1.0 / p.z;
-                    let u = fx * p.x * iz + cx;
-                    let v = fy * p.y * iz + cy;
-                    // Stay one pixel inside, where the gradients are defined.
-                    if !(u >= 1.0 && v >= 1.0 && u <= (w - 2) as f32 && v <= (h - 2) as f32) {
-                        continue;
-                    }
-                    let Some(tap) = Bilinear::new(u, v, w, h) else {
-                        continue;
-                    };
-                    let [value, dx, dy] = sample_packed(packed, &tap);
-                    let resid = value - a * r.value[i] - b;
-                    if !(resid.is_finite() && dx.is_finite() && dy.is_finite()) {
-                        continue;
-                    }
-                    let ax = dx * fx * iz;
-                    let ay = dy * fy * iz;
-                    let az = -(ax * p.x + ay * p.y) * iz;
-                    jac[k] = [
-                        ax,
-                        ay,
-                        az,
-                        p.y * az - p.z * ay,
-                        p.z * ax - p.x * az,
-                        p.x * ay - p.y * ax,
-                        -r.value[i],
-                        -1.0,
-                    ];
-                    res[k] = resid;
+        // Fills one chunk starting at reference pixel `start`; returns its valid residuals.
+        let fill = |start: usize, res: &mut [f32], jac: &mut [[f32; 8]]| {
+            let end = start + res.len();
+            let points = r.x[start..end]
+                .iter()
+                .zip(&r.y[start..end])
+                .zip(&r.z[start..end])
+                .zip(&r.value[start..end]);
+            let mut valid = 0;
+            for ((o, j), (((&x, &y), &z), &reference)) in res.iter_mut().zip(jac).zip(points) {
+                let p = rot * Vector3::new(x, y, z) + t;
+                *o = f32::NAN;
+                if p.z <= 1e-3 {
+                    continue;
                 }
-            });
-        self.residuals.iter().filter(|v| !v.is_nan()).count()
+                let iz = 1.0 / p.z;
+                let u = fx * p.x * iz + cx;
+                let v = fy * p.y * iz + cy;
+                // Stay one pixel inside, where the gradients are defined.
+                if !(u >= 1.0 && v >= 1.0 && u <= (w - 2) as f32 && v <= (h - 2) as f32) {
+                    continue;
+                }
+                let [value, dx, dy] = sample_with_gradient(image, w, h, u, v);
+                let resid = value - a * reference - b;
+                if !(resid.is_finite() && dx.is_finite() && dy.is_finite()) {
+                    continue;
+                }
+                let ax = dx * fx * iz;
+                let ay = dy * fy * iz;
+                let az = -(ax * p.x + ay * p.y) * iz;
+                *j = [
+                    ax,
+                    ay,
+                    az,
+                    p.y * az - p.z * ay,
+                    p.z * ax - p.x * az,
+                    p.x * ay - p.y * ax,
+                    -reference,
+                    -1.0,
+                ];
+                *o = resid;
+                valid += 1;
+            }
+            valid
+        };
+        if n <= SERIAL_MAX_SE3 {
+            self.residuals
+                .chunks_mut(CHUNK)
+                .zip(self.jacobians.chunks_mut(CHUNK))
+                .enumerate()
+                .map(|(c, (res, jac))| fill(c * CHUNK, res, jac))
+                .sum()
+        } else {
+            self.residuals
+                .par_chunks_mut(CHUNK)
+                .zip(self.jacobians.par_chunks_mut(CHUNK))
+                .enumerate()
+                .map(|(c, (res, jac))| fill(c * CHUNK, res, jac))
+                .sum()
+        }
     }
 
     fn residuals(&self) -> &[f32] {
@@ -446,13 +525,22 @@ impl LevelProblem<8> for Se3Level<'_> {
     }
 
     fn normal_equations(&self, loss: &Loss, scale: f32) -> NormalEquations<8> {
-        accumulate(self.residuals.len(), loss, scale, |i| {
+        accumulate(self.residuals.len(), loss, scale, SERIAL_MAX_SE3, |i| {
             let r = self.residuals[i];
             (!r.is_nan()).then(|| {
                 let j = SVector::<f64, 8>::from(self.jacobians[i].map(f64::from));
                 (j, f64::from(r))
             })
         })
+    }
+
+    fn save(&mut self) {
+        std::mem::swap(&mut self.residuals, &mut self.saved.0);
+        std::mem::swap(&mut self.jacobians, &mut self.saved.1);
+    }
+
+    fn restore(&mut self, _state: &Se3State) {
+        self.save();
     }
 
     fn retract(&self, s: &Se3State, delta: &SVector<f64, 8>) -> Se3State {
@@ -539,4 +627,46 @@ pub fn photometric_residual_map(
         }
     });
     Ok(out)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Float tolerance: the same products summed in a different order.
+    const TOLERANCE: f32 = 1e-3;
+
+    #[test]
+    fn on_the_fly_gradient_matches_interpolated_gradient_planes() {
+        let (w, h) = (23, 17);
+        let data = (0..w * h)
+            .map(|i| {
+                let (x, y) = ((i % w) as f32, (i / w) as f32);
+                100.0 + 40.0 * (0.7 * x).sin() * (0.45 * y).cos() + 3.0 * x - 2.0 * y
+            })
+            .collect();
+        let img = Plane::new(w, h, data).expect("valid plane");
+        let g = img.gradients();
+        // Interior points, the lowest and highest allowed coordinates included.
+        let (hi_u, hi_v) = ((w - 2) as f32, (h - 2) as f32);
+        let mut points = vec![(1.0, 1.0), (hi_u, hi_v), (hi_u, 1.0), (1.0, hi_v)];
+        points.extend((0..50).map(|k| {
+            let t = k as f32 / 49.0;
+            (1.0 + t * (hi_u - 1.0), 1.0 + (1.0 - t * t) * (hi_v - 1.0))
+        }));
+        for (u, v) in points {
+            let [value, gx, gy] = sample_with_gradient(&img.data, w, h, u, v);
+            let expected = [
+                img.sample(u, v).expect("inside"),
+                g.gx.sample(u, v).expect("inside"),
+                g.gy.sample(u, v).expect("inside"),
+            ];
+            for (got, want) in [value, gx, gy].into_iter().zip(expected) {
+                assert!(
+                    (got - want).abs() < TOLERANCE,
+                    "({u}, {v}): {got} vs {want}"
+                );
+            }
+        }
+    }
 }

@@ -358,7 +358,7 @@ impl<const M: usize> LevelProblem<M> for Level2d<'_> {
     fn normal_equations(&self, loss: &Loss, scale: f32) -> NormalEquations<M> {
         let r = self.reference;
         let forward = self.target_grad.is_some();
-        accumulate(r.len(), loss, scale, |i| {
+        accumulate(r.len(), loss, scale, CHUNK, |i| {
             let res = self.residuals[i];
             if res.is_nan() {
                 return None;
@@ -500,6 +500,7 @@ pub(crate) fn align_2d<const M: usize>(
             max_condition: cfg.max_condition,
             fixed,
             min_valid: min_pixels,
+            serial_max: CHUNK,
         };
         let out = run_level(&mut problem, state, &settings)?;
         iterations[level] = out.iterations;
