@@ -154,21 +154,32 @@ impl Orb {
         if cfg.n_features == 0 || w < 2 * border + 1 || h < 2 * border + 1 {
             return Ok(Features::default());
         }
-        let base = Plane {
-            width: w,
-            height: h,
-            data: image.as_raw().clone(),
+        let base = Level {
+            image: Plane {
+                width: w,
+                height: h,
+                data: image.as_raw().clone(),
+            },
+            scale: 1.0,
+            ratio: (1.0, 1.0),
         };
-        let levels = pyramid::build(base, cfg.levels, cfg.scale_factor, 2 * border + 1);
-        let detected: Vec<(Vec<Corner>, Plane)> = levels
-            .par_iter()
-            .map(|level| {
-                rayon::join(
-                    || self.candidates(&level.image, border),
-                    || pyramid::gaussian_blur7(&level.image),
-                )
-            })
-            .collect();
+        // Level 0 is about a third of the work: it is detected while the other levels are
+        // being built, which are then detected in parallel.
+        let (first, (above, detected_above)) = rayon::join(
+            || self.detect_level(&base.image, border),
+            || {
+                let above =
+                    pyramid::build_above(&base.image, cfg.levels, cfg.scale_factor, 2 * border + 1);
+                let detected: Vec<(Vec<Corner>, Plane)> = above
+                    .par_iter()
+                    .map(|level| self.detect_level(&level.image, border))
+                    .collect();
+                (above, detected)
+            },
+        );
+        let levels: Vec<Level> = std::iter::once(base).chain(above).collect();
+        let detected: Vec<(Vec<Corner>, Plane)> =
+            std::iter::once(first).chain(detected_above).collect();
         let areas: Vec<usize> = levels
             .iter()
             .map(|l| l.image.width * l.image.height)
@@ -195,6 +206,14 @@ impl Orb {
             out.descriptors.extend(f.descriptors);
         }
         Ok(out)
+    }
+
+    /// A level's FAST corners and, in parallel, its smoothed image for BRIEF.
+    fn detect_level(&self, img: &Plane, border: usize) -> (Vec<Corner>, Plane) {
+        rayon::join(
+            || self.candidates(img, border),
+            || pyramid::gaussian_blur7(img),
+        )
     }
 
     /// FAST corners with threshold fallback and non-maximum suppression inside the border.

@@ -185,19 +185,17 @@ pub(crate) struct Level {
     pub ratio: (f32, f32),
 }
 
-/// Builds up to `levels` levels, level `l` of size `round(w / s^l) x round(h / s^l)`, each
-/// resized from the previous one; stops before a level smaller than `min_size` on a side.
-pub(crate) fn build(base: Plane, levels: usize, scale_factor: f32, min_size: usize) -> Vec<Level> {
+/// The levels `1..levels` above `base` (level 0), level `l` of size
+/// `round(w / s^l) x round(h / s^l)`, each resized from the previous one; stops before a
+/// level smaller than `min_size` on a side.
+pub(crate) fn build_above(
+    base: &Plane,
+    levels: usize,
+    scale_factor: f32,
+    min_size: usize,
+) -> Vec<Level> {
     let (w0, h0) = (base.width, base.height);
-    let mut out: Vec<Level> = Vec::with_capacity(levels);
-    if w0 < min_size || h0 < min_size || levels == 0 {
-        return out;
-    }
-    out.push(Level {
-        image: base,
-        scale: 1.0,
-        ratio: (1.0, 1.0),
-    });
+    let mut out: Vec<Level> = Vec::with_capacity(levels.saturating_sub(1));
     for l in 1..levels {
         let scale = scale_factor.powi(l as i32);
         let w = (w0 as f32 / scale).round() as usize;
@@ -205,7 +203,8 @@ pub(crate) fn build(base: Plane, levels: usize, scale_factor: f32, min_size: usi
         if w < min_size || h < min_size {
             break;
         }
-        let image = resize_bilinear(&out[l - 1].image, w, h);
+        let prev = out.last().map_or(base, |p| &p.image);
+        let image = resize_bilinear(prev, w, h);
         out.push(Level {
             image,
             scale,
