@@ -257,10 +257,7 @@ impl Orb {
         let cand = Candidates {
             xs: corners.iter().map(|c| c.x as f32).collect(),
             ys: corners.iter().map(|c| c.y as f32).collect(),
-            responses: corners
-                .iter()
-                .map(|c| harris::response(&level.image, c.x as usize, c.y as usize))
-                .collect(),
+            responses: harris::responses(&level.image, &corners),
         };
         let region = (
             border as f32,
