@@ -273,19 +273,26 @@ impl Orb {
             n,
             self.cfg.spread_candidates,
         );
-        let mut f = Features::default();
-        for i in keep {
-            let (x, y) = (cand.xs[i] as usize, cand.ys[i] as usize);
-            let angle = describe::orientation(&level.image, x, y, &self.umax);
-            f.xs.push((cand.xs[i] + 0.5) * level.ratio.0 - 0.5);
-            f.ys.push((cand.ys[i] + 0.5) * level.ratio.1 - 0.5);
-            f.levels.push(l);
-            f.scales.push(level.scale);
-            f.angles.push(angle);
-            f.responses.push(cand.responses[i]);
-            f.descriptors.push(describe::brief(smooth, x, y, angle));
+        let points: Vec<(usize, usize)> = keep
+            .iter()
+            .map(|&i| (cand.xs[i] as usize, cand.ys[i] as usize))
+            .collect();
+        let (angles, descriptors) = describe::describe(&level.image, smooth, &points, &self.umax);
+        Features {
+            xs: keep
+                .iter()
+                .map(|&i| (cand.xs[i] + 0.5) * level.ratio.0 - 0.5)
+                .collect(),
+            ys: keep
+                .iter()
+                .map(|&i| (cand.ys[i] + 0.5) * level.ratio.1 - 0.5)
+                .collect(),
+            levels: vec![l; keep.len()],
+            scales: vec![level.scale; keep.len()],
+            angles,
+            responses: keep.iter().map(|&i| cand.responses[i]).collect(),
+            descriptors,
         }
-        f
     }
 }
 
