@@ -175,24 +175,26 @@ fn full_test(centre: &[u8], ring: &[&[u8]; 16], x: usize, t: u8) -> ([u16; LANES
 /// runs of 2, 4 and 8 by AND-ing shifted copies, then the 9th pixel.
 #[inline(always)]
 fn arc9(m: &[[u8; LANES]; 16]) -> [u8; LANES] {
-    let mut run = *m;
-    for step in [1, 2, 4] {
-        let prev = run;
-        for (k, r) in run.iter_mut().enumerate() {
-            let next = &prev[(k + step) & 15];
-            for i in 0..LANES {
-                r[i] &= next[i];
-            }
-        }
-    }
+    let run8 = and_shifted::<4>(&and_shifted::<2>(&and_shifted::<1>(m)));
     let mut any = [0u8; LANES];
-    for (k, r) in run.iter().enumerate() {
-        let ninth = &m[(k + 8) & 15];
+    for k in 0..16 {
         for i in 0..LANES {
-            any[i] |= r[i] & ninth[i];
+            any[i] |= run8[k][i] & m[(k + 8) & 15][i];
         }
     }
     any
+}
+
+/// `out[k] = m[k] & m[(k + STEP) mod 16]`, lane by lane.
+#[inline(always)]
+fn and_shifted<const STEP: usize>(m: &[[u8; LANES]; 16]) -> [[u8; LANES]; 16] {
+    let mut out = [[0u8; LANES]; 16];
+    for k in 0..16 {
+        for i in 0..LANES {
+            out[k][i] = m[k][i] & m[(k + STEP) & 15][i];
+        }
+    }
+    out
 }
 
 /// [`quick_test`] for a row shorter than `LANES` pixels, one pixel at a time.
