@@ -146,18 +146,27 @@ fn full_test(centre: &[u8], ring: &[&[u8]; 16], x: usize, t: u8) -> ([u16; LANES
     let mut bright = [[0u8; LANES]; 16];
     let mut dark = [[0u8; LANES]; 16];
     // Sums of (I_k - I) over the brighter pixels and (I - I_k) over the darker ones, as
-    // saturating differences to the thresholds plus `t` per pixel counted.
+    // saturating differences to the thresholds plus `t` per pixel counted (the counts are
+    // accumulated as byte flags 0xff = -1, subtracted).
     let mut sum_bright = [0u16; LANES];
     let mut sum_dark = [0u16; LANES];
+    let mut count_bright = [0u8; LANES];
+    let mut count_dark = [0u8; LANES];
     for k in 0..16 {
         let r = block(ring[k]);
         for i in 0..LANES {
             let (b, d) = (r[i] > hi[i], r[i] < lo[i]);
             bright[k][i] = 0u8.wrapping_sub(b as u8);
             dark[k][i] = 0u8.wrapping_sub(d as u8);
-            sum_bright[i] += r[i].saturating_sub(hi[i]) as u16 + (t & bright[k][i]) as u16;
-            sum_dark[i] += lo[i].saturating_sub(r[i]) as u16 + (t & dark[k][i]) as u16;
+            count_bright[i] = count_bright[i].wrapping_sub(bright[k][i]);
+            count_dark[i] = count_dark[i].wrapping_sub(dark[k][i]);
+            sum_bright[i] += r[i].saturating_sub(hi[i]) as u16;
+            sum_dark[i] += lo[i].saturating_sub(r[i]) as u16;
         }
+    }
+    for i in 0..LANES {
+        sum_bright[i] += t as u16 * count_bright[i] as u16;
+        sum_dark[i] += t as u16 * count_dark[i] as u16;
     }
     let (arc_bright, arc_dark) = (arc9(&bright), arc9(&dark));
     let mut out = [0u16; LANES];
