@@ -131,6 +131,81 @@ fn quick_test(centre: &[u8], ring: &[&[u8]; 16], x: usize, t: u8) -> u32 {
     mask
 }
 
+/// The exact FAST-9 test and score (as [`corner_score`]) of the pixels `x..x + LANES` of a
+/// row, computed for the whole block in byte and 16-bit lanes: per circle pixel `k`, lanes
+/// `bright_k = I_k > I + t` and `dark_k = I_k < I - t`; a 9-arc starting at `k` is the AND of
+/// `k..k + 9` (mod 16), built from ANDs of runs of 2, 4 and 8. Returns the scores (valid in the
+/// lanes that are corners) and the bit mask of the corners.
+#[inline(always)]
+fn full_test(centre: &[u8], ring: &[&[u8]; 16], x: usize, t: u8) -> ([u16; LANES], u32) {
+    let block =
+        |s: &[u8]| -> [u8; LANES] { s[x..x + LANES].try_into().expect("block of LANES pixels") };
+    let v = block(centre);
+    let hi: [u8; LANES] = std::array::from_fn(|i| v[i].saturating_add(t));
+    let lo: [u8; LANES] = std::array::from_fn(|i| v[i].saturating_sub(t));
+    let mut bright = [[0u8; LANES]; 16];
+    let mut dark = [[0u8; LANES]; 16];
+    // Sums of (I_k - I) over the brighter pixels and (I - I_k) over the darker ones, as
+    // saturating differences to the thresholds plus `t` per pixel counted (the counts are
+    // accumulated as byte flags 0xff = -1, subtracted).
+    let mut sum_bright = [0u16; LANES];
+    let mut sum_dark = [0u16; LANES];
+    let mut count_bright = [0u8; LANES];
+    let mut count_dark = [0u8; LANES];
+    for k in 0..16 {
+        let r = block(ring[k]);
+        for i in 0..LANES {
+            let (b, d) = (r[i] > hi[i], r[i] < lo[i]);
+            bright[k][i] = 0u8.wrapping_sub(b as u8);
+            dark[k][i] = 0u8.wrapping_sub(d as u8);
+            count_bright[i] = count_bright[i].wrapping_sub(bright[k][i]);
+            count_dark[i] = count_dark[i].wrapping_sub(dark[k][i]);
+            sum_bright[i] += r[i].saturating_sub(hi[i]) as u16;
+            sum_dark[i] += lo[i].saturating_sub(r[i]) as u16;
+        }
+    }
+    for i in 0..LANES {
+        sum_bright[i] += t as u16 * count_bright[i] as u16;
+        sum_dark[i] += t as u16 * count_dark[i] as u16;
+    }
+    let (arc_bright, arc_dark) = (arc9(&bright), arc9(&dark));
+    let mut out = [0u16; LANES];
+    let mut mask = 0u32;
+    for i in 0..LANES {
+        let sb = if arc_bright[i] != 0 { sum_bright[i] } else { 0 };
+        let sd = if arc_dark[i] != 0 { sum_dark[i] } else { 0 };
+        out[i] = sb.max(sd);
+        mask |= (((arc_bright[i] | arc_dark[i]) != 0) as u32) << i;
+    }
+    (out, mask)
+}
+
+/// Lanes where the 16 circle flags `m[k]` (0 or 0xff) hold a run of 9 (with wrap-around):
+/// runs of 2, 4 and 8 by AND-ing shifted copies, then the 9th pixel.
+#[inline(always)]
+fn arc9(m: &[[u8; LANES]; 16]) -> [u8; LANES] {
+    let run8 = and_shifted::<4>(&and_shifted::<2>(&and_shifted::<1>(m)));
+    let mut any = [0u8; LANES];
+    for k in 0..16 {
+        for i in 0..LANES {
+            any[i] |= run8[k][i] & m[(k + 8) & 15][i];
+        }
+    }
+    any
+}
+
+/// `out[k] = m[k] & m[(k + STEP) mod 16]`, lane by lane.
+#[inline(always)]
+fn and_shifted<const STEP: usize>(m: &[[u8; LANES]; 16]) -> [[u8; LANES]; 16] {
+    let mut out = [[0u8; LANES]; 16];
+    for k in 0..16 {
+        for i in 0..LANES {
+            out[k][i] = m[k][i] & m[(k + STEP) & 15][i];
+        }
+    }
+    out
+}
+
 /// [`quick_test`] for a row shorter than `LANES` pixels, one pixel at a time.
 fn quick_test_tail(centre: &[u8], ring: &[&[u8]; 16], x: usize, len: usize, t: u8) -> u32 {
     let mut mask = 0u32;
@@ -210,23 +285,34 @@ fn detect_into_generic(
         let mut x = 0;
         while x < n {
             let len = LANES.min(n - x);
-            let mask = if len == LANES {
-                quick_test(centre, &ring, x, t)
-            } else if n >= LANES {
-                // Last partial block: test the full block ending at the row end, keep the
-                // pixels not tested yet.
-                quick_test(centre, &ring, n - LANES, t) >> (LANES - len)
-            } else {
-                quick_test_tail(centre, &ring, x, len, t)
-            };
-            let mut m = mask;
-            while m != 0 {
-                let j = m.trailing_zeros() as usize;
-                m &= m - 1;
-                let c = base + x + j;
-                if let Some(score) = corner_score(data, c, &offsets, t) {
+            if n < LANES {
+                let mut m = quick_test_tail(centre, &ring, x, len, t);
+                while m != 0 {
+                    let j = m.trailing_zeros() as usize;
+                    m &= m - 1;
+                    let c = base + x + j;
+                    if let Some(score) = corner_score(data, c, &offsets, t) {
+                        scores[c] = score;
+                        corners.push(c);
+                    }
+                }
+                x += len;
+                continue;
+            }
+            // The last partial block tests the full block ending at the row end and keeps
+            // the pixels not tested yet.
+            let start = if len == LANES { x } else { n - LANES };
+            let skip = LANES - len;
+            let quick = quick_test(centre, &ring, start, t) >> skip;
+            if quick != 0 {
+                let (block_scores, corner_mask) = full_test(centre, &ring, start, t);
+                let mut m = (corner_mask >> skip) & quick;
+                while m != 0 {
+                    let j = m.trailing_zeros() as usize;
+                    m &= m - 1;
+                    let c = base + x + j;
                     // A score is at least 9 (t + 1) > 0, so 0 marks "no corner".
-                    scores[c] = score;
+                    scores[c] = block_scores[j + skip];
                     corners.push(c);
                 }
             }
@@ -398,6 +484,37 @@ mod tests {
         let (a, b) = (run(detect_into), run(detect_into_generic));
         assert!(a.1.len() > 100);
         assert_eq!(a, b);
+    }
+
+    #[test]
+    fn block_test_agrees_with_the_per_pixel_test() {
+        // Pseudo-random pixels with small contrast: corners of both polarities, both arcs.
+        let (w, h) = (LANES + 6, 9);
+        let mut s = 777u32;
+        let data: Vec<u8> = (0..w * h)
+            .map(|_| {
+                s = s.wrapping_mul(1_103_515_245).wrapping_add(12345);
+                100 + (s >> 27) as u8 * 4
+            })
+            .collect();
+        let offsets = circle_offsets(w);
+        let mut corners = 0;
+        for y in 3..h - 3 {
+            let ring: [&[u8]; 16] = std::array::from_fn(|k| {
+                let start = (y * w + 3) as isize + offsets[k];
+                &data[start as usize..]
+            });
+            let (scores, mask) = full_test(&data[y * w + 3..], &ring, 0, 10);
+            for (i, &got) in scores.iter().enumerate() {
+                let want = corner_score(&data, y * w + 3 + i, &offsets, 10);
+                assert_eq!(mask >> i & 1 == 1, want.is_some(), "y {y} i {i}");
+                if let Some(score) = want {
+                    assert_eq!(got, score, "y {y} i {i}");
+                    corners += 1;
+                }
+            }
+        }
+        assert!(corners > 10, "{corners}");
     }
 
     #[test]

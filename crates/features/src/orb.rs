@@ -154,21 +154,32 @@ impl Orb {
         if cfg.n_features == 0 || w < 2 * border + 1 || h < 2 * border + 1 {
             return Ok(Features::default());
         }
-        let base = Plane {
-            width: w,
-            height: h,
-            data: image.as_raw().clone(),
+        let base = Level {
+            image: Plane {
+                width: w,
+                height: h,
+                data: image.as_raw().clone(),
+            },
+            scale: 1.0,
+            ratio: (1.0, 1.0),
         };
-        let levels = pyramid::build(base, cfg.levels, cfg.scale_factor, 2 * border + 1);
-        let detected: Vec<(Vec<Corner>, Plane)> = levels
-            .par_iter()
-            .map(|level| {
-                rayon::join(
-                    || self.candidates(&level.image, border),
-                    || pyramid::gaussian_blur7(&level.image),
-                )
-            })
-            .collect();
+        // Level 0 is about a third of the work: it is detected while the other levels are
+        // being built, which are then detected in parallel.
+        let (first, (above, detected_above)) = rayon::join(
+            || self.detect_level(&base.image, border),
+            || {
+                let above =
+                    pyramid::build_above(&base.image, cfg.levels, cfg.scale_factor, 2 * border + 1);
+                let detected: Vec<(Vec<Corner>, Plane)> = above
+                    .par_iter()
+                    .map(|level| self.detect_level(&level.image, border))
+                    .collect();
+                (above, detected)
+            },
+        );
+        let levels: Vec<Level> = std::iter::once(base).chain(above).collect();
+        let detected: Vec<(Vec<Corner>, Plane)> =
+            std::iter::once(first).chain(detected_above).collect();
         let areas: Vec<usize> = levels
             .iter()
             .map(|l| l.image.width * l.image.height)
@@ -195,6 +206,14 @@ impl Orb {
             out.descriptors.extend(f.descriptors);
         }
         Ok(out)
+    }
+
+    /// A level's FAST corners and, in parallel, its smoothed image for BRIEF.
+    fn detect_level(&self, img: &Plane, border: usize) -> (Vec<Corner>, Plane) {
+        rayon::join(
+            || self.candidates(img, border),
+            || pyramid::gaussian_blur7(img),
+        )
     }
 
     /// FAST corners with threshold fallback and non-maximum suppression inside the border.
@@ -238,10 +257,7 @@ impl Orb {
         let cand = Candidates {
             xs: corners.iter().map(|c| c.x as f32).collect(),
             ys: corners.iter().map(|c| c.y as f32).collect(),
-            responses: corners
-                .iter()
-                .map(|c| harris::response(&level.image, c.x as usize, c.y as usize))
-                .collect(),
+            responses: harris::responses(&level.image, &corners),
         };
         let region = (
             border as f32,
@@ -257,19 +273,26 @@ impl Orb {
             n,
             self.cfg.spread_candidates,
         );
-        let mut f = Features::default();
-        for i in keep {
-            let (x, y) = (cand.xs[i] as usize, cand.ys[i] as usize);
-            let angle = describe::orientation(&level.image, x, y, &self.umax);
-            f.xs.push((cand.xs[i] + 0.5) * level.ratio.0 - 0.5);
-            f.ys.push((cand.ys[i] + 0.5) * level.ratio.1 - 0.5);
-            f.levels.push(l);
-            f.scales.push(level.scale);
-            f.angles.push(angle);
-            f.responses.push(cand.responses[i]);
-            f.descriptors.push(describe::brief(smooth, x, y, angle));
+        let points: Vec<(usize, usize)> = keep
+            .iter()
+            .map(|&i| (cand.xs[i] as usize, cand.ys[i] as usize))
+            .collect();
+        let (angles, descriptors) = describe::describe(&level.image, smooth, &points, &self.umax);
+        Features {
+            xs: keep
+                .iter()
+                .map(|&i| (cand.xs[i] + 0.5) * level.ratio.0 - 0.5)
+                .collect(),
+            ys: keep
+                .iter()
+                .map(|&i| (cand.ys[i] + 0.5) * level.ratio.1 - 0.5)
+                .collect(),
+            levels: vec![l; keep.len()],
+            scales: vec![level.scale; keep.len()],
+            angles,
+            responses: keep.iter().map(|&i| cand.responses[i]).collect(),
+            descriptors,
         }
-        f
     }
 }
 

@@ -1,5 +1,7 @@
 //! Image pyramid (bilinear downscaling chain) and the 7x7 Gaussian smoothing used by BRIEF.
 
+use rayon::prelude::*;
+
 /// A contiguous 8-bit grey plane, row-major, stride = `width`.
 #[derive(Debug, Clone, PartialEq, Eq)]
 pub(crate) struct Plane {
@@ -20,10 +22,13 @@ impl Plane {
 const WEIGHT_BITS: u32 = 8;
 const WEIGHT_ONE: u32 = 1 << WEIGHT_BITS;
 
+/// A bilinear tap `(i0, i1, w1)`, see [`taps`].
+type Tap = (usize, usize, u32);
+
 /// Bilinear taps for resampling `src` samples onto `dst` samples with pixel centers aligned:
 /// `s = (d + 0.5) * src / dst - 0.5`, clamped to the source. Each tap is
 /// `(i0, i1, w1)` with value `((WEIGHT_ONE - w1) I[i0] + w1 I[i1]) / WEIGHT_ONE`.
-fn taps(src: usize, dst: usize) -> Vec<(usize, usize, u32)> {
+fn taps(src: usize, dst: usize) -> Vec<Tap> {
     let ratio = src as f64 / dst as f64;
     (0..dst)
         .map(|d| {
@@ -35,29 +40,59 @@ fn taps(src: usize, dst: usize) -> Vec<(usize, usize, u32)> {
         .collect()
 }
 
+/// Output rows per parallel band of [`resize_bilinear`].
+const RESIZE_BAND: usize = 32;
+
 /// Bilinear resize of `src` to `width x height` (both at least 1): vertical pass on
-/// contiguous rows into 16-bit sums, then horizontal taps.
+/// contiguous rows into 16-bit sums, then horizontal taps; bands of rows in parallel.
 pub(crate) fn resize_bilinear(src: &Plane, width: usize, height: usize) -> Plane {
     let xt = taps(src.width, width);
     let yt = taps(src.height, height);
-    let mut tmp = vec![0u16; src.width];
     let mut data = vec![0u8; width * height];
-    for (out, &(y0, y1, wy)) in data.chunks_exact_mut(width).zip(&yt) {
+    data.par_chunks_mut(width * RESIZE_BAND)
+        .zip(yt.par_chunks(RESIZE_BAND))
+        .for_each(|(out, yt)| resize_rows(src, &xt, yt, out));
+    Plane {
+        width,
+        height,
+        data,
+    }
+}
+
+/// The output rows `out` (one per vertical tap of `yt`) of [`resize_bilinear`].
+fn resize_rows(src: &Plane, xt: &[Tap], yt: &[Tap], out: &mut [u8]) {
+    #[cfg(target_arch = "x86_64")]
+    {
+        if std::arch::is_x86_feature_detected!("avx2") {
+            // SAFETY: the CPU supports AVX2, checked just above.
+            return unsafe { resize_rows_avx2(src, xt, yt, out) };
+        }
+    }
+    resize_rows_generic(src, xt, yt, out)
+}
+
+/// [`resize_rows`] compiled for AVX2.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+unsafe fn resize_rows_avx2(src: &Plane, xt: &[Tap], yt: &[Tap], out: &mut [u8]) {
+    resize_rows_generic(src, xt, yt, out)
+}
+
+/// The portable body of [`resize_rows`]; inlined into each target-feature variant.
+#[inline(always)]
+fn resize_rows_generic(src: &Plane, xt: &[Tap], yt: &[Tap], out: &mut [u8]) {
+    let mut tmp = vec![0u16; src.width];
+    for (out, &(y0, y1, wy)) in out.chunks_exact_mut(xt.len()).zip(yt) {
         let (r0, r1) = (src.row(y0), src.row(y1));
         let w0 = (WEIGHT_ONE - wy) as u16;
         let w1 = wy as u16;
         for ((t, &a), &b) in tmp.iter_mut().zip(r0).zip(r1) {
             *t = a as u16 * w0 + b as u16 * w1;
         }
-        for (o, &(x0, x1, wx)) in out.iter_mut().zip(&xt) {
+        for (o, &(x0, x1, wx)) in out.iter_mut().zip(xt) {
             let v = tmp[x0] as u32 * (WEIGHT_ONE - wx) + tmp[x1] as u32 * wx;
             *o = ((v + (1 << (2 * WEIGHT_BITS - 1))) >> (2 * WEIGHT_BITS)) as u8;
         }
-    }
-    Plane {
-        width,
-        height,
-        data,
     }
 }
 
@@ -185,19 +220,17 @@ pub(crate) struct Level {
     pub ratio: (f32, f32),
 }
 
-/// Builds up to `levels` levels, level `l` of size `round(w / s^l) x round(h / s^l)`, each
-/// resized from the previous one; stops before a level smaller than `min_size` on a side.
-pub(crate) fn build(base: Plane, levels: usize, scale_factor: f32, min_size: usize) -> Vec<Level> {
+/// The levels `1..levels` above `base` (level 0), level `l` of size
+/// `round(w / s^l) x round(h / s^l)`, each resized from the previous one; stops before a
+/// level smaller than `min_size` on a side.
+pub(crate) fn build_above(
+    base: &Plane,
+    levels: usize,
+    scale_factor: f32,
+    min_size: usize,
+) -> Vec<Level> {
     let (w0, h0) = (base.width, base.height);
-    let mut out: Vec<Level> = Vec::with_capacity(levels);
-    if w0 < min_size || h0 < min_size || levels == 0 {
-        return out;
-    }
-    out.push(Level {
-        image: base,
-        scale: 1.0,
-        ratio: (1.0, 1.0),
-    });
+    let mut out: Vec<Level> = Vec::with_capacity(levels.saturating_sub(1));
     for l in 1..levels {
         let scale = scale_factor.powi(l as i32);
         let w = (w0 as f32 / scale).round() as usize;
@@ -205,7 +238,8 @@ pub(crate) fn build(base: Plane, levels: usize, scale_factor: f32, min_size: usi
         if w < min_size || h < min_size {
             break;
         }
-        let image = resize_bilinear(&out[l - 1].image, w, h);
+        let prev = out.last().map_or(base, |p| &p.image);
+        let image = resize_bilinear(prev, w, h);
         out.push(Level {
             image,
             scale,
