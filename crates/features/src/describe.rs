@@ -229,17 +229,7 @@ mod tests {
     #[test]
     fn dispatched_and_portable_describe_agree() {
         let w = 64;
-        let mut s = 4242u32;
-        let img = Plane {
-            width: w,
-            height: w,
-            data: (0..w * w)
-                .map(|_| {
-                    s = s.wrapping_mul(1_103_515_245).wrapping_add(12345);
-                    (s >> 24) as u8
-                })
-                .collect(),
-        };
+        let img = crate::pyramid::noise_plane(w, 4242);
         let points: Vec<(usize, usize)> = (19..45).map(|i| (i, 63 - i)).collect();
         let u = umax();
         let got = describe(&img, &img, &points, &u);
@@ -252,17 +242,7 @@ mod tests {
     #[test]
     fn disc_weights_give_the_moments_of_the_disc() {
         let w = 40;
-        let mut s = 31u32;
-        let img = Plane {
-            width: w,
-            height: w,
-            data: (0..w * w)
-                .map(|_| {
-                    s = s.wrapping_mul(1_103_515_245).wrapping_add(12345);
-                    (s >> 24) as u8
-                })
-                .collect(),
-        };
+        let img = crate::pyramid::noise_plane(w, 31);
         let u = umax();
         for (x, y) in [(17, 17), (20, 22), (23, 18)] {
             let (mut m10, mut m01) = (0i64, 0i64);

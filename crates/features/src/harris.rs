@@ -171,17 +171,7 @@ mod tests {
     #[test]
     fn lane_sums_equal_the_definition() {
         let w = 24;
-        let mut s = 99u32;
-        let img = Plane {
-            width: w,
-            height: w,
-            data: (0..w * w)
-                .map(|_| {
-                    s = s.wrapping_mul(1_103_515_245).wrapping_add(12345);
-                    (s >> 24) as u8
-                })
-                .collect(),
-        };
+        let img = crate::pyramid::noise_plane(w, 99);
         for (x, y) in [(5, 5), (12, 9), (18, 18), (7, 15)] {
             assert_eq!(response(&img, x, y), reference(&img, x, y), "({x}, {y})");
         }

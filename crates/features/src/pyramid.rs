@@ -249,6 +249,23 @@ pub(crate) fn build_above(
     out
 }
 
+/// A `w x w` plane of pseudo-random grey levels (LCG from `seed`), for tests.
+#[cfg(test)]
+pub(crate) fn noise_plane(w: usize, seed: u32) -> Plane {
+    let mut s = seed;
+    let data = (0..w * w)
+        .map(|_| {
+            s = s.wrapping_mul(1_103_515_245).wrapping_add(12345);
+            (s >> 24) as u8
+        })
+        .collect();
+    Plane {
+        width: w,
+        height: w,
+        data,
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
