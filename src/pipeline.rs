@@ -87,7 +87,8 @@ pub struct FeatureTracker {
     pub geometry: RelativePoseConfig,
 }
 
-fn ms_since(start: Instant) -> f64 {
+/// Milliseconds since `start`.
+pub(crate) fn ms_since(start: Instant) -> f64 {
     start.elapsed().as_secs_f64() * 1e3
 }
 

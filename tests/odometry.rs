@@ -12,6 +12,7 @@ use vofront::odometry::feature_rgbd::{FeatureRgbdConfig, FeatureRgbdTracker};
 use vofront::odometry::mono::{MonoConfig, MonoTracker};
 use vofront::odometry::run::{run, RunSummary};
 use vofront::odometry::{TrackStatus, Tracker};
+use vofront::trajectory::Trajectory;
 
 /// Frames in the synthetic sequences (about 1 cm and 0.3 deg per frame).
 const FRAMES: usize = 40;
@@ -58,6 +59,15 @@ fn shared_sequence() -> &'static Dataset {
     SEQUENCE.get_or_init(|| sequence("shared", 640, 480).1)
 }
 
+/// ATE RMSE (metres) of `est` against `gt` after `alignment`.
+fn ate_rmse(gt: &Trajectory, est: &Trajectory, alignment: Alignment) -> f64 {
+    let cfg = EvalConfig {
+        alignment,
+        ..EvalConfig::default()
+    };
+    ate(gt, est, &cfg).unwrap().stats.rmse
+}
+
 fn direct_tracker(width: u32) -> DirectTracker {
     DirectTracker::new(scaled_camera(width), DirectTrackerConfig::default())
 }
@@ -79,16 +89,8 @@ fn direct_tracker_follows_the_room_sequence() {
         "first frame at the origin"
     );
     let gt = dataset.ground_truth.clone().unwrap();
-    let a = ate(
-        &gt,
-        &out.trajectory,
-        &EvalConfig {
-            alignment: Alignment::Se3,
-            ..EvalConfig::default()
-        },
-    )
-    .unwrap();
-    assert!(a.stats.rmse < DIRECT_ATE_M, "ATE {} m", a.stats.rmse);
+    let a = ate_rmse(&gt, &out.trajectory, Alignment::Se3);
+    assert!(a < DIRECT_ATE_M, "ATE {} m", a);
 }
 
 #[test]
@@ -142,16 +144,8 @@ fn feature_rgbd_tracker_follows_the_room_sequence() {
     let out = run(dataset, &mut tracker, None, |_, _| {});
     assert_eq!(out.summary.lost + out.summary.reinitialised, 0);
     let gt = dataset.ground_truth.clone().unwrap();
-    let a = ate(
-        &gt,
-        &out.trajectory,
-        &EvalConfig {
-            alignment: Alignment::Se3,
-            ..EvalConfig::default()
-        },
-    )
-    .unwrap();
-    assert!(a.stats.rmse < FEATURE_RGBD_ATE_M, "ATE {} m", a.stats.rmse);
+    let a = ate_rmse(&gt, &out.trajectory, Alignment::Se3);
+    assert!(a < FEATURE_RGBD_ATE_M, "ATE {} m", a);
     let scored = out
         .records
         .iter()
@@ -184,25 +178,9 @@ fn monocular_tracker_initialises_and_keeps_a_consistent_scale() {
         "{status:?}"
     );
     let gt = dataset.ground_truth.clone().unwrap();
-    let a = ate(
-        &gt,
-        &out.trajectory,
-        &EvalConfig {
-            alignment: Alignment::Sim3,
-            ..EvalConfig::default()
-        },
-    )
-    .unwrap();
-    assert!(a.stats.rmse < MONO_ATE_M, "ATE {} m", a.stats.rmse);
+    let a = ate_rmse(&gt, &out.trajectory, Alignment::Sim3);
+    assert!(a < MONO_ATE_M, "ATE {} m", a);
     // A rigid alignment cannot fix the arbitrary scale: the trajectory is not metric.
-    let rigid = ate(
-        &gt,
-        &out.trajectory,
-        &EvalConfig {
-            alignment: Alignment::Se3,
-            ..EvalConfig::default()
-        },
-    )
-    .unwrap();
-    assert!(rigid.stats.rmse > 5.0 * a.stats.rmse);
+    let rigid = ate_rmse(&gt, &out.trajectory, Alignment::Se3);
+    assert!(rigid > 5.0 * a);
 }

@@ -15,8 +15,7 @@ use vofront_direct::{Plane, RgbdFrame, Se3Config, Se3Reference};
 use vofront_geometry::Camera;
 
 use super::keyframe::{KeyframePolicy, KeyframeView};
-use super::motion::ConstantVelocity;
-use super::{ms_since, FrameEstimate, FrameQuality, TrackStatus, Tracker};
+use super::{ms_since, FrameEstimate, FrameQuality, KeyframeSlot, TrackStatus, Tracker};
 use crate::dataset::Frame;
 
 /// Settings of [`DirectTracker`].
@@ -55,9 +54,7 @@ struct Keyframe {
 pub struct DirectTracker {
     cfg: DirectTrackerConfig,
     camera: Camera,
-    keyframe: Option<Keyframe>,
-    motion: ConstantVelocity,
-    started: bool,
+    slot: KeyframeSlot<Keyframe>,
 }
 
 fn median_depth(depth: &Plane) -> f64 {
@@ -76,17 +73,20 @@ impl DirectTracker {
         Self {
             cfg,
             camera,
-            keyframe: None,
-            motion: ConstantVelocity::default(),
-            started: false,
+            slot: KeyframeSlot::default(),
         }
     }
 
-    fn make_keyframe(&self, frame: &Frame, t_wc: Isometry3<f64>) -> Result<Keyframe, String> {
+    /// A keyframe from a frame's grey `image` (already a plane) and its depth, at `t_wc`.
+    fn make_keyframe(
+        &self,
+        frame: &Frame,
+        image: Plane,
+        t_wc: Isometry3<f64>,
+    ) -> Result<Keyframe, String> {
         let depth = frame.depth.as_ref().ok_or("frame has no depth")?;
         let depth = Plane::from_gray_f32(depth);
-        let rgbd = RgbdFrame::new(Plane::from_gray8(&frame.image), depth, &self.camera)
-            .map_err(|e| e.to_string())?;
+        let rgbd = RgbdFrame::new(image, depth, &self.camera).map_err(|e| e.to_string())?;
         let reference = Se3Reference::new(&rgbd, &self.cfg.se3).map_err(|e| e.to_string())?;
         let selected = reference.selected().first().copied().unwrap_or(0);
         Ok(Keyframe {
@@ -97,47 +97,20 @@ impl DirectTracker {
             first_residual: None,
         })
     }
-
-    /// Starts over at `t_wc` from this frame; `Lost` if the frame cannot be a keyframe.
-    fn restart(
-        &mut self,
-        frame: &Frame,
-        t_wc: Isometry3<f64>,
-        why: String,
-        start: Instant,
-    ) -> FrameEstimate {
-        let status = if self.started {
-            TrackStatus::Reinitialised
-        } else {
-            TrackStatus::Ok
-        };
-        match self.make_keyframe(frame, t_wc) {
-            Ok(kf) => {
-                self.keyframe = Some(kf);
-                self.started = true;
-                self.motion.update(t_wc);
-                // The last velocity led to a failure: do not trust it for the next frame.
-                self.motion.reset_velocity();
-                FrameEstimate::started(t_wc, status, why, start)
-            }
-            Err(e) => {
-                self.keyframe = None;
-                self.motion.reset_velocity();
-                FrameEstimate::lost(t_wc, format!("{why}; {e}"), start)
-            }
-        }
-    }
 }
 
 impl Tracker for DirectTracker {
     fn track(&mut self, frame: &Frame) -> FrameEstimate {
         let start = Instant::now();
-        let predicted = self.motion.predict().unwrap_or_else(Isometry3::identity);
-        let Some(kf) = &mut self.keyframe else {
-            return self.restart(frame, predicted, "no keyframe".into(), start);
+        let predicted = self.slot.predict();
+        let current = Plane::from_gray8(&frame.image);
+        let Some(kf) = &mut self.slot.keyframe else {
+            let made = self.make_keyframe(frame, current, predicted);
+            return self
+                .slot
+                .restart(made, predicted, "no keyframe".into(), start);
         };
         let prior = predicted.inverse() * kf.t_wc;
-        let current = Plane::from_gray8(&frame.image);
         let fit = kf
             .reference
             .align(&current, &prior, &self.cfg.se3)
@@ -157,10 +130,13 @@ impl Tracker for DirectTracker {
             });
         let fit = match fit {
             Ok(fit) => fit,
-            Err(why) => return self.restart(frame, predicted, why, start),
+            Err(why) => {
+                let made = self.make_keyframe(frame, current, predicted);
+                return self.slot.restart(made, predicted, why, start);
+            }
         };
         let t_wc = kf.t_wc * fit.pose.inverse();
-        self.motion.update(t_wc);
+        self.slot.motion.update(t_wc);
         let first_residual = *kf.first_residual.get_or_insert(fit.rmse);
         let view = KeyframeView {
             t_cur_kf: fit.pose,
@@ -171,8 +147,8 @@ impl Tracker for DirectTracker {
         };
         let mut keyframe = false;
         if self.cfg.keyframe.needs_keyframe(&view) {
-            if let Ok(new_kf) = self.make_keyframe(frame, t_wc) {
-                self.keyframe = Some(new_kf);
+            if let Ok(new_kf) = self.make_keyframe(frame, current, t_wc) {
+                self.slot.keyframe = Some(new_kf);
                 keyframe = true;
             }
         }

@@ -17,9 +17,9 @@ use vofront_geometry::pnp::PnpConfig;
 use vofront_geometry::Camera;
 
 use super::keyframe::{KeyframePolicy, KeyframeView};
-use super::motion::ConstantVelocity;
 use super::{
-    feature_pixel, ms_since, pnp_tracked, FrameEstimate, FrameQuality, TrackStatus, Tracker,
+    feature_pixel, ms_since, pnp_tracked, FrameEstimate, FrameQuality, KeyframeSlot, TrackStatus,
+    Tracker,
 };
 use crate::dataset::Frame;
 
@@ -76,9 +76,7 @@ pub struct FeatureRgbdTracker {
     cfg: FeatureRgbdConfig,
     orb: Orb,
     camera: Camera,
-    keyframe: Option<Keyframe>,
-    motion: ConstantVelocity,
-    started: bool,
+    slot: KeyframeSlot<Keyframe>,
 }
 
 impl FeatureRgbdTracker {
@@ -92,9 +90,7 @@ impl FeatureRgbdTracker {
             cfg,
             orb,
             camera,
-            keyframe: None,
-            motion: ConstantVelocity::default(),
-            started: false,
+            slot: KeyframeSlot::default(),
         })
     }
 
@@ -140,35 +136,6 @@ impl FeatureRgbdTracker {
             first_residual: None,
         })
     }
-
-    fn restart(
-        &mut self,
-        frame: &Frame,
-        features: Features,
-        t_wc: Isometry3<f64>,
-        why: String,
-        start: Instant,
-    ) -> FrameEstimate {
-        let status = if self.started {
-            TrackStatus::Reinitialised
-        } else {
-            TrackStatus::Ok
-        };
-        match self.make_keyframe(frame, features, t_wc) {
-            Ok(kf) => {
-                self.keyframe = Some(kf);
-                self.started = true;
-                self.motion.update(t_wc);
-                self.motion.reset_velocity();
-                FrameEstimate::started(t_wc, status, why, start)
-            }
-            Err(e) => {
-                self.keyframe = None;
-                self.motion.reset_velocity();
-                FrameEstimate::lost(t_wc, format!("{why}; {e}"), start)
-            }
-        }
-    }
 }
 
 /// Keyframe-to-current matches: windowed around the predictions `pi(K T_cur_kf' P_kf)`,
@@ -213,15 +180,23 @@ fn keyframe_matches(
 impl Tracker for FeatureRgbdTracker {
     fn track(&mut self, frame: &Frame) -> FrameEstimate {
         let start = Instant::now();
-        let predicted = self.motion.predict().unwrap_or_else(Isometry3::identity);
+        let predicted = self.slot.predict();
         let features = match self.orb.detect_and_describe(&frame.image) {
             Ok(f) => f,
             Err(e) => {
-                return self.restart(frame, Features::default(), predicted, e.to_string(), start)
+                return self.slot.restart(
+                    Err("no features".into()),
+                    predicted,
+                    e.to_string(),
+                    start,
+                )
             }
         };
-        let Some(kf) = self.keyframe.as_mut() else {
-            return self.restart(frame, features, predicted, "no keyframe".into(), start);
+        let Some(kf) = self.slot.keyframe.as_mut() else {
+            let made = self.make_keyframe(frame, features, predicted);
+            return self
+                .slot
+                .restart(made, predicted, "no keyframe".into(), start);
         };
         let prior = predicted.inverse() * kf.t_wc;
         let matches = keyframe_matches(&self.cfg, &self.camera, kf, &features, &prior);
@@ -243,7 +218,10 @@ impl Tracker for FeatureRgbdTracker {
         );
         let fit = match fit {
             Ok(fit) => fit,
-            Err(why) => return self.restart(frame, features, predicted, why, start),
+            Err(why) => {
+                let made = self.make_keyframe(frame, features, predicted);
+                return self.slot.restart(made, predicted, why, start);
+            }
         };
         let t_wc = kf.t_wc * fit.pose.inverse();
         let first_residual = *kf.first_residual.get_or_insert(fit.rmse_px);
@@ -254,7 +232,7 @@ impl Tracker for FeatureRgbdTracker {
             residual: fit.rmse_px,
             first_residual,
         };
-        self.motion.update(t_wc);
+        self.slot.motion.update(t_wc);
         let quality = FrameQuality {
             inliers: fit.inlier_count,
             inlier_ratio: fit.inlier_count as f64 / matches.len().max(1) as f64,
@@ -267,7 +245,7 @@ impl Tracker for FeatureRgbdTracker {
         let keyframe = if self.cfg.keyframe.needs_keyframe(&view) {
             match self.make_keyframe(frame, features, t_wc) {
                 Ok(new_kf) => {
-                    self.keyframe = Some(new_kf);
+                    self.slot.keyframe = Some(new_kf);
                     true
                 }
                 Err(_) => false,

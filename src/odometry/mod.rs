@@ -25,6 +25,7 @@ use vofront_geometry::pnp::{solve_pnp_ransac, PnpConfig, PnpResult};
 use vofront_geometry::Camera;
 
 use crate::dataset::Frame;
+use motion::ConstantVelocity;
 
 /// How tracking of one frame went.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -88,9 +89,64 @@ pub trait Tracker {
     fn track(&mut self, frame: &Frame) -> FrameEstimate;
 }
 
-/// Milliseconds since `start`.
-pub(crate) fn ms_since(start: Instant) -> f64 {
-    start.elapsed().as_secs_f64() * 1e3
+pub(crate) use crate::pipeline::ms_since;
+
+/// What every keyframe tracker keeps between frames: its keyframe `K`, the constant-velocity
+/// prior, and whether tracking has started (so a restart can be told from the first frame).
+pub(crate) struct KeyframeSlot<K> {
+    /// The keyframe new frames are aligned to; `None` after a failed restart.
+    pub keyframe: Option<K>,
+    /// The motion prior.
+    pub motion: ConstantVelocity,
+    started: bool,
+}
+
+impl<K> Default for KeyframeSlot<K> {
+    fn default() -> Self {
+        Self {
+            keyframe: None,
+            motion: ConstantVelocity::default(),
+            started: false,
+        }
+    }
+}
+
+impl<K> KeyframeSlot<K> {
+    /// The motion model's `T_wc` for the next frame (the origin before the first frame).
+    pub fn predict(&self) -> Isometry3<f64> {
+        self.motion.predict().unwrap_or_else(Isometry3::identity)
+    }
+
+    /// Starts over at `t_wc` with the keyframe `made` from the current frame (or why it could
+    /// not be made, which makes the frame lost). The velocity that led to the failure is
+    /// dropped either way.
+    pub fn restart(
+        &mut self,
+        made: Result<K, String>,
+        t_wc: Isometry3<f64>,
+        why: String,
+        start: Instant,
+    ) -> FrameEstimate {
+        let status = if self.started {
+            TrackStatus::Reinitialised
+        } else {
+            TrackStatus::Ok
+        };
+        let estimate = match made {
+            Ok(kf) => {
+                self.keyframe = Some(kf);
+                self.started = true;
+                self.motion.update(t_wc);
+                FrameEstimate::started(t_wc, status, why, start)
+            }
+            Err(e) => {
+                self.keyframe = None;
+                FrameEstimate::lost(t_wc, format!("{why}; {e}"), start)
+            }
+        };
+        self.motion.reset_velocity();
+        estimate
+    }
 }
 
 impl FrameEstimate {

@@ -280,7 +280,10 @@ impl Se3Reference {
                 });
             }
         }
-        unreachable!("the loop returns at level 0")
+        // The loop returns at level 0, which every pyramid has.
+        Err(DirectError::InvalidConfig(
+            "the pyramid has no full-resolution level",
+        ))
     }
 }
 

@@ -8,8 +8,8 @@ use image::GrayImage;
 use nalgebra::{Isometry3, Matrix3};
 use serde_json::{json, Value};
 use vofront::direct::{
-    align_se3, align_translation, photometric_residual_map, RgbdFrame, Se3Config, Se3Result,
-    TranslationConfig, TranslationResult,
+    align_se3, align_translation, photometric_residual_map, DirectError, RgbdFrame, Se3Config,
+    Se3Result, TranslationConfig, TranslationResult,
 };
 use vofront::draw;
 use vofront::geometry::{Camera, Model};
@@ -48,6 +48,8 @@ pub struct Outcome {
     pub translation: Option<Result<Timed<TranslationResult>, String>>,
     /// Direct SE(3) alignment with the depth of frame 1.
     pub se3: Option<Result<Timed<Se3Result>, String>>,
+    /// The reference frame (undistorted image and depth of frame 1) `se3` was aligned against.
+    pub se3_reference: Option<RgbdFrame>,
 }
 
 impl Outcome {
@@ -93,6 +95,7 @@ pub fn estimate(inputs: &Inputs) -> Outcome {
         let (p1, p2) = (gray_plane(&inputs.img1), gray_plane(&inputs.img2));
         timed(|| align_translation(&p1, &p2, &TranslationConfig::default()))
     });
+    let mut se3_reference = None;
     let se3 = run_direct
         .then_some(())
         .and(inputs.depth1.as_ref())
@@ -100,21 +103,21 @@ pub fn estimate(inputs: &Inputs) -> Outcome {
             check_same_size(&inputs.img1, inputs.img2.dimensions(), "frame 2")?;
             check_same_size(&inputs.img1, depth.dimensions(), "depth")?;
             let current = gray_plane(&inputs.img2);
-            timed(|| {
+            let ((fit, reference), ms) = timed(|| {
                 let reference =
                     RgbdFrame::new(gray_plane(&inputs.img1), depth_plane(depth), &inputs.camera)?;
-                align_se3(
-                    &reference,
-                    &current,
-                    &Isometry3::identity(),
-                    &Se3Config::default(),
-                )
-            })
+                let prior = Isometry3::identity();
+                let fit = align_se3(&reference, &current, &prior, &Se3Config::default())?;
+                Ok::<_, DirectError>((fit, reference))
+            })?;
+            se3_reference = Some(reference);
+            Ok((fit, ms))
         });
     Outcome {
         feature,
         translation,
         se3,
+        se3_reference,
     }
 }
 
@@ -303,13 +306,9 @@ pub fn write_pictures(dir: &Path, inputs: &Inputs, outcome: &Outcome) -> Result<
         save(&draw::heat(w, h, &before, 64.0), dir, "diff_before.png")?;
         save(&draw::heat(w, h, &after, 64.0), dir, "diff_after.png")?;
     }
-    if let (Some(Ok((s, _))), Some(depth)) = (&outcome.se3, &inputs.depth1) {
-        let reference =
-            RgbdFrame::new(gray_plane(&inputs.img1), depth_plane(depth), &inputs.camera)
-                .map_err(|e| e.to_string())?;
-        let map =
-            photometric_residual_map(&reference, &gray_plane(&inputs.img2), &s.pose, s.a, s.b)
-                .map_err(|e| e.to_string())?;
+    if let (Some(Ok((s, _))), Some(reference)) = (&outcome.se3, &outcome.se3_reference) {
+        let map = photometric_residual_map(reference, &gray_plane(&inputs.img2), &s.pose, s.a, s.b)
+            .map_err(|e| e.to_string())?;
         let (w, h) = map.size();
         save(
             &draw::heat(

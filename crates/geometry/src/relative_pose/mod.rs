@@ -475,9 +475,10 @@ pub fn estimate_relative_pose(
             }
         }
     }
+    // Not the rotation-only case, so at least one candidate had a recovery to refine.
     let (state, cost, model, rec) = *refined
         .first()
-        .expect("the rotation-only case handles no recovery");
+        .ok_or_else(|| GeometryError::Degenerate("no recovered motion to refine".to_string()))?;
     // Two refined motions with nearly equal cost (a plane's twins, or a near-planar scene):
     // report both.
     let rival = refined.get(1).filter(|r| {
