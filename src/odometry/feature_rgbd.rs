@@ -10,15 +10,13 @@
 use std::time::Instant;
 
 use nalgebra::{Isometry3, Point3, Vector2};
-use vofront_features::{
-    match_descriptors, match_windowed, Features, Match, MatchConfig, Orb, OrbConfig,
-};
+use vofront_features::{Features, MatchConfig, Orb, OrbConfig};
 use vofront_geometry::pnp::PnpConfig;
 use vofront_geometry::Camera;
 
 use super::keyframe::{KeyframePolicy, KeyframeView};
 use super::{
-    feature_pixel, ms_since, pnp_tracked, FrameEstimate, FrameQuality, KeyframeSlot, TrackStatus,
+    ms_since, FrameEstimate, FrameQuality, KeyframeSlot, Located, PointLocator, TrackStatus,
     Tracker,
 };
 use crate::dataset::Frame;
@@ -138,45 +136,6 @@ impl FeatureRgbdTracker {
     }
 }
 
-/// Keyframe-to-current matches: windowed around the predictions `pi(K T_cur_kf' P_kf)`,
-/// brute force (restricted to keyframe features with depth) when too few are found.
-fn keyframe_matches(
-    cfg: &FeatureRgbdConfig,
-    camera: &Camera,
-    kf: &Keyframe,
-    current: &Features,
-    prior: &Isometry3<f64>,
-) -> Vec<Match> {
-    let predicted: Vec<(f32, f32)> = kf
-        .points
-        .iter()
-        .map(|p| {
-            p.and_then(|p| camera.project(&(prior * p).coords))
-                .map_or((f32::NAN, f32::NAN), |u| (u.x as f32, u.y as f32))
-        })
-        .collect();
-    let windowed = match_windowed(
-        &kf.features,
-        &predicted,
-        current,
-        cfg.window_px,
-        Some(1),
-        &cfg.matching,
-    )
-    .unwrap_or_default();
-    if windowed.len() >= 2 * cfg.min_inliers {
-        return windowed;
-    }
-    match_descriptors(
-        &kf.features.descriptors,
-        &current.descriptors,
-        &cfg.matching,
-    )
-    .into_iter()
-    .filter(|m| kf.points[m.query as usize].is_some())
-    .collect()
-}
-
 impl Tracker for FeatureRgbdTracker {
     fn track(&mut self, frame: &Frame) -> FrameEstimate {
         let start = Instant::now();
@@ -199,23 +158,15 @@ impl Tracker for FeatureRgbdTracker {
                 .restart(made, predicted, "no keyframe".into(), start);
         };
         let prior = predicted.inverse() * kf.t_wc;
-        let matches = keyframe_matches(&self.cfg, &self.camera, kf, &features, &prior);
-        let world: Vec<Point3<f64>> = matches
-            .iter()
-            .filter_map(|m| kf.points[m.query as usize])
-            .collect();
-        let pixels: Vec<Vector2<f64>> = matches
-            .iter()
-            .map(|m| feature_pixel(&features, m.train))
-            .collect();
-        let fit = pnp_tracked(
-            &world,
-            &pixels,
-            &self.camera,
-            prior,
-            &self.cfg.pnp,
-            self.cfg.min_inliers,
-        );
+        let locator = PointLocator {
+            camera: &self.camera,
+            matching: &self.cfg.matching,
+            window_px: self.cfg.window_px,
+            pnp: &self.cfg.pnp,
+            min_inliers: self.cfg.min_inliers,
+        };
+        let Located { matches, fit, .. } =
+            locator.locate(&kf.features, &kf.points, &features, prior);
         let fit = match fit {
             Ok(fit) => fit,
             Err(why) => {

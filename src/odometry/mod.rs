@@ -20,7 +20,7 @@ pub mod run;
 use std::time::Instant;
 
 use nalgebra::{Isometry3, Point3, Vector2};
-use vofront_features::Features;
+use vofront_features::{match_descriptors, match_windowed, Features, Match, MatchConfig};
 use vofront_geometry::pnp::{solve_pnp_ransac, PnpConfig, PnpResult};
 use vofront_geometry::Camera;
 
@@ -193,23 +193,85 @@ pub(crate) fn feature_pixel(f: &Features, i: u32) -> Vector2<f64> {
     Vector2::new(f.xs[i as usize] as f64, f.ys[i as usize] as f64)
 }
 
-/// PnP RANSAC with refinement, accepted only with at least `min_inliers` inliers.
-pub(crate) fn pnp_tracked(
-    world: &[Point3<f64>],
-    pixels: &[Vector2<f64>],
-    camera: &Camera,
-    prior: Isometry3<f64>,
-    cfg: &PnpConfig,
-    min_inliers: usize,
-) -> Result<PnpResult, String> {
-    let fit =
-        solve_pnp_ransac(world, pixels, camera, Some(prior), cfg).map_err(|e| e.to_string())?;
-    if fit.inlier_count >= min_inliers {
-        Ok(fit)
-    } else {
-        Err(format!(
-            "{} PnP inliers, {} needed",
-            fit.inlier_count, min_inliers
-        ))
+/// How a feature tracker locates a frame against keyframe features that carry 3D points.
+pub(crate) struct PointLocator<'a> {
+    /// The camera of every frame.
+    pub camera: &'a Camera,
+    /// Matching filters.
+    pub matching: &'a MatchConfig,
+    /// Search radius around each predicted position, pixels.
+    pub window_px: f32,
+    /// PnP RANSAC and refinement.
+    pub pnp: &'a PnpConfig,
+    /// Fewest PnP inliers for the frame to count as located.
+    pub min_inliers: usize,
+}
+
+/// The matches a frame was located with and the PnP result (or why it failed).
+pub(crate) struct Located {
+    /// Keyframe feature (query) to current feature (train), only for features with a point.
+    pub matches: Vec<Match>,
+    /// The point of each match, in the frame the prior maps from.
+    pub points: Vec<Point3<f64>>,
+    /// `T_cur_from`: the points' frame into the current camera.
+    pub fit: Result<PnpResult, String>,
+}
+
+impl PointLocator<'_> {
+    /// Matches keyframe features carrying a point `P` to `current` within `window_px` of
+    /// `pi(K prior P)` (by brute force when that finds fewer than `2 min_inliers`), then
+    /// estimates `T_cur_from` by PnP from the guess `prior`.
+    pub fn locate(
+        &self,
+        kf: &Features,
+        points: &[Option<Point3<f64>>],
+        current: &Features,
+        prior: Isometry3<f64>,
+    ) -> Located {
+        let predicted: Vec<(f32, f32)> = points
+            .iter()
+            .map(|p| {
+                p.and_then(|p| self.camera.project(&(prior * p).coords))
+                    .map_or((f32::NAN, f32::NAN), |u| (u.x as f32, u.y as f32))
+            })
+            .collect();
+        let mut matches = match_windowed(
+            kf,
+            &predicted,
+            current,
+            self.window_px,
+            Some(1),
+            self.matching,
+        )
+        .unwrap_or_default();
+        if matches.len() < 2 * self.min_inliers {
+            matches = match_descriptors(&kf.descriptors, &current.descriptors, self.matching);
+        }
+        matches.retain(|m| points[m.query as usize].is_some());
+        let world: Vec<Point3<f64>> = matches
+            .iter()
+            .filter_map(|m| points[m.query as usize])
+            .collect();
+        let pixels: Vec<Vector2<f64>> = matches
+            .iter()
+            .map(|m| feature_pixel(current, m.train))
+            .collect();
+        let fit = solve_pnp_ransac(&world, &pixels, self.camera, Some(prior), self.pnp)
+            .map_err(|e| e.to_string())
+            .and_then(|fit| {
+                if fit.inlier_count >= self.min_inliers {
+                    Ok(fit)
+                } else {
+                    Err(format!(
+                        "{} PnP inliers, {} needed",
+                        fit.inlier_count, self.min_inliers
+                    ))
+                }
+            });
+        Located {
+            matches,
+            points: world,
+            fit,
+        }
     }
 }

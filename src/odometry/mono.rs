@@ -16,9 +16,7 @@
 use std::time::Instant;
 
 use nalgebra::{Isometry3, Point3, Vector2, Vector3};
-use vofront_features::{
-    match_descriptors, match_windowed, Features, Match, MatchConfig, Orb, OrbConfig,
-};
+use vofront_features::{match_descriptors, Features, Match, MatchConfig, Orb, OrbConfig};
 use vofront_geometry::pnp::PnpConfig;
 use vofront_geometry::triangulate::{parallax_deg, triangulate_dlt};
 use vofront_geometry::{estimate_relative_pose, Camera, RelativePoseConfig};
@@ -26,7 +24,8 @@ use vofront_geometry::{estimate_relative_pose, Camera, RelativePoseConfig};
 use super::keyframe::{KeyframePolicy, KeyframeView};
 use super::motion::ConstantVelocity;
 use super::{
-    feature_pixel, ms_since, pnp_tracked, FrameEstimate, FrameQuality, TrackStatus, Tracker,
+    feature_pixel, ms_since, FrameEstimate, FrameQuality, Located, PointLocator, TrackStatus,
+    Tracker,
 };
 use crate::dataset::Frame;
 
@@ -290,48 +289,18 @@ impl MonoTracker {
                 Some("not tracking".into()),
             );
         };
-        let prior = predicted.inverse();
-        let predicted_px: Vec<(f32, f32)> = kf
-            .points
-            .iter()
-            .map(|p| {
-                p.and_then(|p| self.camera.project(&(prior * p).coords))
-                    .map_or((f32::NAN, f32::NAN), |u| (u.x as f32, u.y as f32))
-            })
-            .collect();
-        let mut matches = match_windowed(
-            &kf.features,
-            &predicted_px,
-            &current,
-            self.cfg.window_px,
-            Some(1),
-            &self.cfg.matching,
-        )
-        .unwrap_or_default();
-        if matches.len() < 2 * self.cfg.min_inliers {
-            matches = match_descriptors(
-                &kf.features.descriptors,
-                &current.descriptors,
-                &self.cfg.matching,
-            );
-        }
-        matches.retain(|m| kf.points[m.query as usize].is_some());
-        let world: Vec<Point3<f64>> = matches
-            .iter()
-            .filter_map(|m| kf.points[m.query as usize])
-            .collect();
-        let pixels: Vec<Vector2<f64>> = matches
-            .iter()
-            .map(|m| feature_pixel(&current, m.train))
-            .collect();
-        let fit = pnp_tracked(
-            &world,
-            &pixels,
-            &self.camera,
-            prior,
-            &self.cfg.pnp,
-            self.cfg.min_inliers,
-        );
+        let locator = PointLocator {
+            camera: &self.camera,
+            matching: &self.cfg.matching,
+            window_px: self.cfg.window_px,
+            pnp: &self.cfg.pnp,
+            min_inliers: self.cfg.min_inliers,
+        };
+        let Located {
+            matches,
+            points: world,
+            fit,
+        } = locator.locate(&kf.features, &kf.points, &current, predicted.inverse());
         let fit = match fit {
             Ok(fit) => fit,
             Err(why) => {
