@@ -1,11 +1,14 @@
 //! SE(3) direct alignment on a TUM RGB-D pair against ground truth, timed like
 //! `opencv_peer.py rgbd` (frame preparation included).
 //!
-//! Usage: `cargo run --release -p vofront-direct --example rgbd_tum -- CASE_DIR [REPS] [LOSS]`
+//! Usage:
+//! `cargo run --release -p vofront-direct --example rgbd_tum -- CASE_DIR [REPS] [LOSS] [K]`
 //! where `CASE_DIR` holds `img_prev.png`, `dep_prev.png`, `img_curr.png`, `dep_curr.png`
 //! (depth in 1/5000 m) and `pose_prev.txt`, `pose_curr.txt` (`tx ty tz qx qy qz qw`,
 //! camera-to-world), and `LOSS` is `huber` (default) or `student`. The camera is TUM
-//! freiburg1 (517.3, 516.5, 318.6, 255.3, distortion 0.2624 -0.9531 -0.0054 0.0026 1.1633).
+//! freiburg1 (517.3, 516.5, 318.6, 255.3, distortion 0.2624 -0.9531 -0.0054 0.0026 1.1633)
+//! unless `K` = `fx,fy,cx,cy` gives a pinhole camera without distortion (e.g. `525,525,319.5,239.5`
+//! for the pairs written by `vofront-fixtures`' `render_pairs` example).
 //! The undistortion map is built once outside the timed loop (it depends on the camera only).
 //! Prints the estimate of `T_21 = T_w_curr^-1 T_w_prev` (the reference is the previous frame),
 //! its rotation and translation errors, and the median time.
@@ -22,7 +25,7 @@ use vofront_robust::Loss;
 fn main() -> Result<(), Box<dyn std::error::Error>> {
     let args: Vec<String> = std::env::args().collect();
     if args.len() < 2 {
-        eprintln!("usage: rgbd_tum CASE_DIR [REPS] [huber|student]");
+        eprintln!("usage: rgbd_tum CASE_DIR [REPS] [huber|student] [fx,fy,cx,cy]");
         std::process::exit(2);
     }
     let dir = Path::new(&args[1]);
@@ -35,10 +38,19 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         Some("student") => Loss::StudentT(5.0),
         _ => Loss::Huber(1.345),
     };
-    let camera = Camera::new(
-        Pinhole::new(517.3, 516.5, 318.6, 255.3)?,
-        Distortion::from_array([0.2624, -0.9531, -0.0054, 0.0026, 1.1633]),
-    );
+    let camera = match args.get(4) {
+        Some(k) => {
+            let k: Vec<f64> = k.split(',').map(str::parse).collect::<Result<_, _>>()?;
+            if k.len() != 4 {
+                return Err("K must be fx,fy,cx,cy".into());
+            }
+            Camera::pinhole(Pinhole::new(k[0], k[1], k[2], k[3])?)
+        }
+        None => Camera::new(
+            Pinhole::new(517.3, 516.5, 318.6, 255.3)?,
+            Distortion::from_array([0.2624, -0.9531, -0.0054, 0.0026, 1.1633]),
+        ),
+    };
     let grey = |name: &str| -> Result<Plane, Box<dyn std::error::Error>> {
         Ok(Plane::from_gray8(&image::open(dir.join(name))?.to_luma8()))
     };
@@ -67,11 +79,15 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         ..Se3Config::default()
     };
     // The undistortion map depends on the camera only: built once, like a calibration.
-    let undistorter = Some(Arc::new(Undistorter::new(
-        &camera,
-        img_prev.width,
-        img_prev.height,
-    )?));
+    let undistorter = if camera.distortion.is_identity() {
+        None
+    } else {
+        Some(Arc::new(Undistorter::new(
+            &camera,
+            img_prev.width,
+            img_prev.height,
+        )?))
+    };
     let mut times = Vec::new();
     let mut prepare_times = Vec::new();
     let mut fit = None;

@@ -6,7 +6,9 @@
 //! scale `s = 1.4826 median |r_i|` (floored), weights `w_i = psi(r_i/s) / (r_i/s)`, step
 //! `(H + lambda diag H) delta = -g` (with parameters held fixed replaced by identity rows),
 //! acceptance when the mean robust cost `s^2 mean rho(r_i / s)` decreases, `lambda` divided by
-//! 10 on success and multiplied by 10 on failure; a few failures in a row end the level.
+//! 10 on success and multiplied by 10 on failure; a few failures in a row end the level, and so
+//! does a step that is small in metric terms or small against its own uncertainty
+//! (`delta^T H delta / s^2`, the squared step in standard deviations).
 
 use nalgebra::{SMatrix, SVector};
 use rayon::prelude::*;
@@ -63,6 +65,10 @@ pub(crate) struct LmSettings<const M: usize> {
     pub max_iterations: usize,
     /// Convergence when `step_norm(delta) <` this.
     pub min_step: f64,
+    /// Convergence when the step is shorter than this many of its own standard deviations:
+    /// `delta^T H delta / s^2 < min_step_sigmas^2`, with `s^2 H^-1` the Gauss-Newton covariance
+    /// (0 disables the test).
+    pub min_step_sigmas: f64,
     /// Per-parameter weights of the step norm `|diag(step_weights) delta|`.
     pub step_weights: SVector<f64, M>,
     /// Convergence when the relative cost decrease of an accepted step is below this.
@@ -188,7 +194,9 @@ pub(crate) fn run_level<P: LevelProblem<M>, const M: usize>(
         iterations += 1;
         let (h, g) = with_fixed(&ne, &cfg.fixed);
         let delta = solve_damped(&h, &g, lambda, Damping::Diagonal, cfg.max_condition)?;
-        let small = delta.component_mul(&cfg.step_weights).norm() < cfg.min_step;
+        let sigmas2 = (delta.transpose() * h * delta)[(0, 0)] / f64::from(scale * scale);
+        let small = delta.component_mul(&cfg.step_weights).norm() < cfg.min_step
+            || sigmas2 < cfg.min_step_sigmas * cfg.min_step_sigmas;
         let candidate = problem.retract(&state, &delta);
         problem.save();
         let trial_valid = problem.evaluate(&candidate);

@@ -54,6 +54,10 @@ pub struct Se3Config {
     pub max_iterations: usize,
     /// Stop when `|delta|` (metres and radians) is below this.
     pub min_step: f64,
+    /// Stop when the step is below this many of its own standard deviations (Mahalanobis
+    /// length under the level's Gauss-Newton covariance): finer steps are below the noise of
+    /// the estimate. 0 disables the test.
+    pub min_step_sigmas: f64,
     /// Stop when an accepted step lowers the mean robust cost by less than this fraction.
     pub min_relative_decrease: f64,
     /// Floor of the residual scale, grey levels.
@@ -78,6 +82,7 @@ impl Default for Se3Config {
             affine_brightness: true,
             max_iterations: 30,
             min_step: 1e-6,
+            min_step_sigmas: 0.2,
             min_relative_decrease: 1e-6,
             min_sigma: 0.5,
             min_depth: 0.1,
@@ -227,6 +232,7 @@ impl Se3Reference {
             min_sigma: cfg.min_sigma,
             max_iterations: cfg.max_iterations,
             min_step: cfg.min_step,
+            min_step_sigmas: cfg.min_step_sigmas,
             step_weights,
             min_relative_decrease: cfg.min_relative_decrease,
             max_condition: cfg.max_condition,

@@ -495,6 +495,7 @@ pub(crate) fn align_2d<const M: usize>(
             min_sigma: cfg.min_sigma,
             max_iterations: cfg.max_iterations,
             min_step: cfg.min_step,
+            min_step_sigmas: 0.0,
             step_weights,
             min_relative_decrease: cfg.min_relative_decrease,
             max_condition: cfg.max_condition,

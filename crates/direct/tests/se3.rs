@@ -4,7 +4,7 @@ use nalgebra::Isometry3;
 use vofront_direct::{
     align_se3, photometric_residual_map, DirectError, Plane, RgbdFrame, Se3Config,
 };
-use vofront_fixtures::image2d::{brightness, occlude_patches};
+use vofront_fixtures::image2d::{add_gaussian_noise, brightness, occlude_patches};
 use vofront_fixtures::scene::{default_camera, distorted_camera, pose_wc, Rendered, Scene};
 use vofront_geometry::camera::{Camera, Pinhole};
 use vofront_geometry::lie::rotation_angle_deg;
@@ -155,6 +155,42 @@ fn noiseless_motion_is_recovered_with_covariance_and_full_inliers() {
         "{}",
         bad[bad.len() / 2]
     );
+}
+
+/// Stopping once a step is below a fraction of its own standard deviation lands where full
+/// convergence lands (within that fraction of a standard deviation), in fewer iterations.
+#[test]
+fn stopping_below_the_noise_matches_full_convergence() {
+    let p = pair(half_camera(default_camera()));
+    let current = Plane::from_gray_f32(&add_gaussian_noise(&p.second.image, 3.0, 11));
+    let run = |min_step_sigmas, min_step| {
+        let cfg = Se3Config {
+            min_step_sigmas,
+            min_step,
+            ..Se3Config::default()
+        };
+        align_se3(&frame(&p), &current, &Isometry3::identity(), &cfg).unwrap()
+    };
+    let early = run(
+        Se3Config::default().min_step_sigmas,
+        Se3Config::default().min_step,
+    );
+    let full = run(0.0, 1e-9);
+    assert!(Se3Config::default().min_step_sigmas > 0.0);
+    assert!(
+        early.iterations.iter().sum::<usize>() < full.iterations.iter().sum::<usize>(),
+        "{:?} vs {:?}",
+        early.iterations,
+        full.iterations
+    );
+    let difference = vofront_geometry::lie::se3_log(&(early.pose * full.pose.inverse()));
+    let information = full
+        .covariance
+        .try_inverse()
+        .expect("a well-conditioned covariance");
+    let sigmas = (difference.transpose() * information * difference)[(0, 0)].sqrt();
+    assert!(sigmas < 0.5, "{sigmas} standard deviations apart");
+    assert_accurate(&early.pose, &p, "noisy, early stop");
 }
 
 #[test]
