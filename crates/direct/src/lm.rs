@@ -21,9 +21,9 @@ use crate::error::DirectError;
 /// Residuals per rayon task in the parallel reductions.
 pub(crate) const CHUNK: usize = 4096;
 
-/// Up to this many residuals the SE(3) evaluations and reductions run on the calling thread:
-/// handing a few thousand rows to the pool costs more (thread wake-ups) than it saves.
-pub(crate) const SERIAL_MAX_SE3: usize = 4 * CHUNK;
+/// Up to this many residuals the evaluations and reductions of a level run on the calling
+/// thread: handing a few thousand rows to the pool costs more (thread wake-ups) than it saves.
+pub(crate) const SERIAL_MAX: usize = 4 * CHUNK;
 
 /// Consecutive rejected steps (each with ten times more damping) that end a level: the
 /// linearisation no longer predicts the cost, which happens at the noise floor of the minimum.

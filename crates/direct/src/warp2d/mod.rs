@@ -21,8 +21,12 @@ use rayon::prelude::*;
 use vofront_robust::{Convergence, Loss, NormalEquations};
 
 use crate::error::DirectError;
-use crate::lm::{accumulate, covariance, run_level, LevelProblem, LmSettings, CHUNK};
+use crate::lm::{accumulate, covariance, run_level, LevelProblem, LmSettings, CHUNK, SERIAL_MAX};
 use crate::plane::{Bilinear, Gradients, Plane, Pyramid};
+
+mod select;
+
+use select::RefPixels;
 
 /// Smallest side of the coarsest pyramid level, pixels.
 const MIN_LEVEL_SIDE: usize = 16;
@@ -130,83 +134,6 @@ pub struct WarpResult {
     pub converged: bool,
 }
 
-/// Reference pixels of one level, structure of arrays.
-#[derive(Debug, Default)]
-struct RefPixels {
-    x: Vec<f32>,
-    y: Vec<f32>,
-    value: Vec<f32>,
-    gx: Vec<f32>,
-    gy: Vec<f32>,
-}
-
-impl RefPixels {
-    /// Interior pixels of `img` with `gx^2 + gy^2 >= threshold^2`; when more than
-    /// `max_pixels` qualify, only those with the largest gradients (about `max_pixels`).
-    fn select(img: &Plane, threshold: f32, max_pixels: usize) -> Self {
-        let mut threshold = threshold;
-        let t2 = threshold * threshold;
-        // Count the candidates and keep every 8th one's squared gradient to estimate quantiles.
-        let mut count = 0usize;
-        let mut sample = Vec::new();
-        interior_gradient_rows(img, |gx, gy, _, _| {
-            for (a, b) in gx.iter().zip(gy) {
-                let g2 = a * a + b * b;
-                if g2 >= t2 {
-                    if count % 8 == 0 {
-                        sample.push(g2);
-                    }
-                    count += 1;
-                }
-            }
-        });
-        if count > max_pixels && max_pixels > 0 && !sample.is_empty() {
-            let k = sample.len() - (max_pixels / 8).clamp(1, sample.len());
-            let (_, cut, _) = sample.select_nth_unstable_by(k, f32::total_cmp);
-            threshold = threshold.max(cut.sqrt());
-        }
-        let mut out = RefPixels::default();
-        let t2 = threshold * threshold;
-        interior_gradient_rows(img, |gx, gy, row, y| {
-            for (x, ((&a, &b), &v)) in gx.iter().zip(gy).zip(row).enumerate() {
-                if a * a + b * b >= t2 {
-                    out.x.push((x + 1) as f32);
-                    out.y.push(y as f32);
-                    out.value.push(v);
-                    out.gx.push(a);
-                    out.gy.push(b);
-                }
-            }
-        });
-        out
-    }
-
-    fn len(&self) -> usize {
-        self.x.len()
-    }
-}
-
-/// Calls `f(gx, gy, row, y)` for every interior row `y` of `img` with its central-difference
-/// gradients; the slices cover the interior columns (`gx[i]` belongs to pixel `i + 1`).
-fn interior_gradient_rows(img: &Plane, mut f: impl FnMut(&[f32], &[f32], &[f32], usize)) {
-    let (w, h) = img.size();
-    if w < 3 || h < 3 {
-        return;
-    }
-    let mut gx = vec![0f32; w];
-    let mut gy = vec![0f32; w];
-    for y in 1..h - 1 {
-        let (up, row, down) = (img.row(y - 1), img.row(y), img.row(y + 1));
-        for ((o, a), b) in gx[1..w - 1].iter_mut().zip(&row[2..]).zip(&row[..w - 2]) {
-            *o = 0.5 * (a - b);
-        }
-        for ((o, a), b) in gy[1..w - 1].iter_mut().zip(&down[1..]).zip(&up[1..]) {
-            *o = 0.5 * (a - b);
-        }
-        f(&gx[1..w - 1], &gy[1..w - 1], &row[1..w - 1], y);
-    }
-}
-
 /// Warp and brightness.
 #[derive(Debug, Clone, Copy)]
 pub(crate) struct State2d {
@@ -306,46 +233,79 @@ impl<const M: usize> LevelProblem<M> for Level2d<'_> {
         let img = &self.target.data;
         let r = self.reference;
         let n = r.len();
+        // A translation moves every pixel by the same fraction of a pixel: only the top-left
+        // tap differs between pixels (`floor(x + t) = x + floor(t)` for integer `x`).
+        let shift = (self.kind == WarpKind::Translation).then(|| {
+            let (tx, ty) = (h[(0, 2)].floor(), h[(1, 2)].floor());
+            (tx as isize, ty as isize, h[(0, 2)] - tx, h[(1, 2)] - ty)
+        });
         let warp = move |i: usize| -> Option<Bilinear> {
             let (x, y) = (r.x[i], r.y[i]);
+            if let Some((ox, oy, fx, fy)) = shift {
+                let (xi, yi) = (x as isize + ox, y as isize + oy);
+                let inside = xi >= 0 && yi >= 0 && xi + 1 < w as isize && yi + 1 < hgt as isize;
+                return inside.then(|| Bilinear {
+                    index: yi as usize * w + xi as usize,
+                    stride: w,
+                    fx,
+                    fy,
+                });
+            }
             let z = h[(2, 0)] * x + h[(2, 1)] * y + h[(2, 2)];
             let u = (h[(0, 0)] * x + h[(0, 1)] * y + h[(0, 2)]) / z;
             let v = (h[(1, 0)] * x + h[(1, 1)] * y + h[(1, 2)]) / z;
             Bilinear::new(u, v, w, hgt)
         };
         self.residuals.resize(n, f32::NAN);
+        let serial = n <= SERIAL_MAX;
         match self.target_grad {
-            None => self
-                .residuals
-                .par_chunks_mut(CHUNK)
-                .enumerate()
-                .for_each(|(c, out)| {
-                    for (k, o) in out.iter_mut().enumerate() {
-                        let i = c * CHUNK + k;
+            None => {
+                // Fills the chunk of residuals starting at reference pixel `start`.
+                let fill = |start: usize, out: &mut [f32]| {
+                    for (i, o) in (start..).zip(out.iter_mut()) {
                         *o = warp(i).map_or(f32::NAN, |t| t.apply(img) - a * r.value[i] - b);
                     }
-                }),
+                };
+                if serial {
+                    fill(0, &mut self.residuals);
+                } else {
+                    self.residuals
+                        .par_chunks_mut(CHUNK)
+                        .enumerate()
+                        .for_each(|(c, out)| fill(c * CHUNK, out));
+                }
+            }
             Some(grad) => {
                 self.sampled_gx.resize(n, 0.0);
                 self.sampled_gy.resize(n, 0.0);
-                self.residuals
-                    .par_chunks_mut(CHUNK)
-                    .zip(self.sampled_gx.par_chunks_mut(CHUNK))
-                    .zip(self.sampled_gy.par_chunks_mut(CHUNK))
-                    .enumerate()
-                    .for_each(|(c, ((out, ogx), ogy))| {
-                        for k in 0..out.len() {
-                            let i = c * CHUNK + k;
-                            out[k] = match warp(i) {
-                                Some(t) => {
-                                    ogx[k] = t.apply(&grad.gx.data);
-                                    ogy[k] = t.apply(&grad.gy.data);
-                                    t.apply(img) - a * r.value[i] - b
-                                }
-                                None => f32::NAN,
-                            };
-                        }
-                    });
+                // Fills residuals and sampled target gradients from reference pixel `start`.
+                let fill = |start: usize, out: &mut [f32], ogx: &mut [f32], ogy: &mut [f32]| {
+                    for (k, i) in (start..start + out.len()).enumerate() {
+                        out[k] = match warp(i) {
+                            Some(t) => {
+                                ogx[k] = t.apply(&grad.gx.data);
+                                ogy[k] = t.apply(&grad.gy.data);
+                                t.apply(img) - a * r.value[i] - b
+                            }
+                            None => f32::NAN,
+                        };
+                    }
+                };
+                if serial {
+                    fill(
+                        0,
+                        &mut self.residuals,
+                        &mut self.sampled_gx,
+                        &mut self.sampled_gy,
+                    );
+                } else {
+                    self.residuals
+                        .par_chunks_mut(CHUNK)
+                        .zip(self.sampled_gx.par_chunks_mut(CHUNK))
+                        .zip(self.sampled_gy.par_chunks_mut(CHUNK))
+                        .enumerate()
+                        .for_each(|(c, ((out, ogx), ogy))| fill(c * CHUNK, out, ogx, ogy));
+                }
             }
         }
         self.residuals.iter().filter(|v| !v.is_nan()).count()
@@ -358,7 +318,7 @@ impl<const M: usize> LevelProblem<M> for Level2d<'_> {
     fn normal_equations(&self, loss: &Loss, scale: f32) -> NormalEquations<M> {
         let r = self.reference;
         let forward = self.target_grad.is_some();
-        accumulate(r.len(), loss, scale, CHUNK, |i| {
+        accumulate(r.len(), loss, scale, SERIAL_MAX, |i| {
             let res = self.residuals[i];
             if res.is_nan() {
                 return None;
@@ -501,7 +461,7 @@ pub(crate) fn align_2d<const M: usize>(
             max_condition: cfg.max_condition,
             fixed,
             min_valid: min_pixels,
-            serial_max: CHUNK,
+            serial_max: SERIAL_MAX,
         };
         let out = run_level(&mut problem, state, &settings)?;
         iterations[level] = out.iterations;

@@ -16,21 +16,25 @@
 //! Level `l` uses `f / 2^l`, `c / 2^l` and depth sampled at level-0 pixel `2^l p`.
 //! Each level runs robust Levenberg-Marquardt (Huber or Student-t weights, MAD scale
 //! re-estimated every iteration, normal equations reduced in parallel), coarse to fine, from the
-//! prior pose.
+//! prior pose. Submodules: `select` (the pixels of each level), `level` (residuals and
+//! Jacobian rows of one level).
 
 use std::sync::Arc;
 
 use nalgebra::{Isometry3, Matrix6, SVector, Vector3};
 use rayon::prelude::*;
-use vofront_geometry::lie::retract_left;
-use vofront_robust::{Convergence, Loss, NormalEquations};
+use vofront_robust::{Convergence, Loss};
 
 use crate::error::DirectError;
-use crate::lm::{
-    accumulate, covariance, run_level, LevelProblem, LmSettings, CHUNK, SERIAL_MAX_SE3,
-};
+use crate::lm::{covariance, run_level, LevelProblem, LmSettings, SERIAL_MAX};
 use crate::plane::{Bilinear, Plane};
 use crate::rgbd::{RgbdFrame, Undistorter};
+
+mod level;
+mod select;
+
+use level::{Se3Level, Se3State};
+use select::{select_level, RefLevel};
 
 /// Smallest side of the coarsest pyramid level, pixels.
 const MIN_LEVEL_SIDE: usize = 20;
@@ -116,19 +120,6 @@ pub struct Se3Result {
     pub covariance: Matrix6<f64>,
     /// Why the full-resolution level stopped.
     pub reason: Convergence,
-}
-
-/// Selected reference pixels of one level, structure of arrays.
-#[derive(Debug, Clone, Default)]
-struct RefLevel {
-    /// Camera-frame points, metres.
-    x: Vec<f32>,
-    y: Vec<f32>,
-    z: Vec<f32>,
-    /// Grey level of the reference pixel.
-    value: Vec<f32>,
-    /// Intrinsics of the level `(fx, fy, cx, cy)`.
-    k: [f32; 4],
 }
 
 /// A reference frame with its pixels selected per level, reusable for several current images.
@@ -238,7 +229,7 @@ impl Se3Reference {
             max_condition: cfg.max_condition,
             fixed,
             min_valid: MIN_VALID,
-            serial_max: SERIAL_MAX_SE3,
+            serial_max: SERIAL_MAX,
         };
         for level in (0..=coarse.len()).rev() {
             let reference = &self.levels[level];
@@ -305,261 +296,6 @@ fn coarse_levels(base: &Plane, levels: usize) -> Vec<Plane> {
         out.push(last.pyr_down());
     }
     out
-}
-
-/// Grey level and central-difference gradient of `img` at `(u, v)`, bilinearly interpolated
-/// from the four surrounding pixels (the same values as interpolating [`Plane::gradients`]),
-/// without building gradient planes. Needs `1 <= u, v` and `u <= w - 2`, `v <= h - 2`.
-#[inline]
-fn sample_with_gradient(img: &[f32], w: usize, h: usize, u: f32, v: f32) -> [f32; 3] {
-    // Top-left tap in [1, w - 3] so that the 4x4 neighbourhood stays inside the plane.
-    let x0 = (u as usize).min(w - 3).max(1);
-    let y0 = (v as usize).min(h - 3).max(1);
-    let (fx, fy) = (u - x0 as f32, v - y0 as f32);
-    let i = y0 * w + x0;
-    // Rows y0 - 1 ..= y0 + 2: `r0`, `r1` cover columns x0 - 1 ..= x0 + 2, `up`, `down` x0 ..= x0 + 1
-    // (fixed-size copies: one bounds check per row).
-    let taps = |start: usize| -> [f32; 4] {
-        img[start..start + 4]
-            .try_into()
-            .expect("a slice of four elements")
-    };
-    let pair = |start: usize| -> [f32; 2] {
-        img[start..start + 2]
-            .try_into()
-            .expect("a slice of two elements")
-    };
-    let (up, r0, r1, down) = (pair(i - w), taps(i - 1), taps(i + w - 1), pair(i + 2 * w));
-    let (a, b, c, d) = (r0[1], r0[2], r1[1], r1[2]);
-    let (w0, w1, w2, w3) = (
-        (1.0 - fx) * (1.0 - fy),
-        fx * (1.0 - fy),
-        (1.0 - fx) * fy,
-        fx * fy,
-    );
-    let value = w0 * a + w1 * b + w2 * c + w3 * d;
-    let gx = 0.5
-        * (w0 * (r0[2] - r0[0])
-            + w1 * (r0[3] - r0[1])
-            + w2 * (r1[2] - r1[0])
-            + w3 * (r1[3] - r1[1]));
-    let gy = 0.5
-        * (w0 * (r1[1] - up[0])
-            + w1 * (r1[2] - up[1])
-            + w2 * (down[0] - r0[1])
-            + w3 * (down[1] - r0[2]));
-    [value, gx, gy]
-}
-
-/// Pixels of one level: per grid cell, the largest gradient with a valid depth.
-fn select_level(
-    img: &Plane,
-    depth0: &Plane,
-    step: usize,
-    k: [f32; 4],
-    cfg: &Se3Config,
-) -> RefLevel {
-    let (w, h) = img.size();
-    let cell = ((w * h) as f64 / cfg.pixel_budget as f64)
-        .sqrt()
-        .ceil()
-        .max(1.0) as usize;
-    let t2 = cfg.gradient_threshold * cfg.gradient_threshold;
-    let depth_at = |x: usize, y: usize| {
-        let z = depth0.data[(y * step) * depth0.width + x * step];
-        (z >= cfg.min_depth && z <= cfg.max_depth).then_some(z)
-    };
-    let bands: Vec<RefLevel> = (1..h.saturating_sub(1))
-        .step_by(cell)
-        .collect::<Vec<_>>()
-        .into_par_iter()
-        .map(|cy| {
-            let mut out = RefLevel::default();
-            // Per cell of the band: (g2, x, y, z) of the best pixel so far.
-            let cells = (w.saturating_sub(2)).div_ceil(cell);
-            let mut best: Vec<Option<(f32, usize, usize, f32)>> = vec![None; cells];
-            let mut g2 = vec![0f32; w];
-            for y in cy..(cy + cell).min(h - 1) {
-                let (up, row, down) = (img.row(y - 1), img.row(y), img.row(y + 1));
-                // Central differences, as in `Plane::gradients`; g2[x] for x in 1..w-1.
-                for (((o, (r, l)), d), u) in g2[1..w - 1]
-                    .iter_mut()
-                    .zip(row[2..].iter().zip(&row[..w - 2]))
-                    .zip(&down[1..w - 1])
-                    .zip(&up[1..w - 1])
-                {
-                    let (gx, gy) = (0.5 * (r - l), 0.5 * (d - u));
-                    *o = gx * gx + gy * gy;
-                }
-                for (ci, b) in best.iter_mut().enumerate() {
-                    let x0 = 1 + ci * cell;
-                    for (x, &g) in g2.iter().enumerate().take((x0 + cell).min(w - 1)).skip(x0) {
-                        if g >= t2 && b.map_or(true, |b| g > b.0) {
-                            if let Some(z) = depth_at(x, y) {
-                                *b = Some((g, x, y, z));
-                            }
-                        }
-                    }
-                }
-            }
-            for (_, x, y, z) in best.into_iter().flatten() {
-                let value = img.at(x, y);
-                if value.is_finite() {
-                    out.x.push((x as f32 - k[2]) / k[0] * z);
-                    out.y.push((y as f32 - k[3]) / k[1] * z);
-                    out.z.push(z);
-                    out.value.push(value);
-                }
-            }
-            out
-        })
-        .collect();
-    let mut out = RefLevel {
-        k,
-        ..RefLevel::default()
-    };
-    for band in bands {
-        out.x.extend(band.x);
-        out.y.extend(band.y);
-        out.z.extend(band.z);
-        out.value.extend(band.value);
-    }
-    out
-}
-
-/// Pose and brightness.
-#[derive(Debug, Clone, Copy)]
-struct Se3State {
-    pose: Isometry3<f64>,
-    a: f64,
-    b: f64,
-}
-
-/// One level of the SE(3) problem: residuals and Jacobian rows in SoA buffers.
-struct Se3Level<'a> {
-    reference: &'a RefLevel,
-    /// `(width, height)` of the current level.
-    size: (usize, usize),
-    /// Grey levels of the current level, row-major.
-    image: &'a [f32],
-    residuals: Vec<f32>,
-    jacobians: Vec<[f32; 8]>,
-    /// The evaluation at the accepted state while a trial is evaluated.
-    saved: (Vec<f32>, Vec<[f32; 8]>),
-}
-
-impl LevelProblem<8> for Se3Level<'_> {
-    type State = Se3State;
-
-    fn evaluate(&mut self, s: &Se3State) -> usize {
-        let rot = s
-            .pose
-            .rotation
-            .to_rotation_matrix()
-            .into_inner()
-            .cast::<f32>();
-        let t = s.pose.translation.vector.cast::<f32>();
-        let (a, b) = (s.a as f32, s.b as f32);
-        let r = self.reference;
-        let [fx, fy, cx, cy] = r.k;
-        let (w, h) = self.size;
-        let image = self.image;
-        let n = r.x.len();
-        self.residuals.resize(n, f32::NAN);
-        self.jacobians.resize(n, [0.0; 8]);
-        // Fills one chunk starting at reference pixel `start`; returns its valid residuals.
-        let fill = |start: usize, res: &mut [f32], jac: &mut [[f32; 8]]| {
-            let end = start + res.len();
-            let points = r.x[start..end]
-                .iter()
-                .zip(&r.y[start..end])
-                .zip(&r.z[start..end])
-                .zip(&r.value[start..end]);
-            let mut valid = 0;
-            for ((o, j), (((&x, &y), &z), &reference)) in res.iter_mut().zip(jac).zip(points) {
-                let p = rot * Vector3::new(x, y, z) + t;
-                *o = f32::NAN;
-                if p.z <= 1e-3 {
-                    continue;
-                }
-                let iz = 1.0 / p.z;
-                let u = fx * p.x * iz + cx;
-                let v = fy * p.y * iz + cy;
-                // Stay one pixel inside, where the gradients are defined.
-                if !(u >= 1.0 && v >= 1.0 && u <= (w - 2) as f32 && v <= (h - 2) as f32) {
-                    continue;
-                }
-                let [value, dx, dy] = sample_with_gradient(image, w, h, u, v);
-                let resid = value - a * reference - b;
-                if !(resid.is_finite() && dx.is_finite() && dy.is_finite()) {
-                    continue;
-                }
-                let ax = dx * fx * iz;
-                let ay = dy * fy * iz;
-                let az = -(ax * p.x + ay * p.y) * iz;
-                *j = [
-                    ax,
-                    ay,
-                    az,
-                    p.y * az - p.z * ay,
-                    p.z * ax - p.x * az,
-                    p.x * ay - p.y * ax,
-                    -reference,
-                    -1.0,
-                ];
-                *o = resid;
-                valid += 1;
-            }
-            valid
-        };
-        if n <= SERIAL_MAX_SE3 {
-            self.residuals
-                .chunks_mut(CHUNK)
-                .zip(self.jacobians.chunks_mut(CHUNK))
-                .enumerate()
-                .map(|(c, (res, jac))| fill(c * CHUNK, res, jac))
-                .sum()
-        } else {
-            self.residuals
-                .par_chunks_mut(CHUNK)
-                .zip(self.jacobians.par_chunks_mut(CHUNK))
-                .enumerate()
-                .map(|(c, (res, jac))| fill(c * CHUNK, res, jac))
-                .sum()
-        }
-    }
-
-    fn residuals(&self) -> &[f32] {
-        &self.residuals
-    }
-
-    fn normal_equations(&self, loss: &Loss, scale: f32) -> NormalEquations<8> {
-        accumulate(self.residuals.len(), loss, scale, SERIAL_MAX_SE3, |i| {
-            let r = self.residuals[i];
-            (!r.is_nan()).then(|| {
-                let j = SVector::<f64, 8>::from(self.jacobians[i].map(f64::from));
-                (j, f64::from(r))
-            })
-        })
-    }
-
-    fn save(&mut self) {
-        std::mem::swap(&mut self.residuals, &mut self.saved.0);
-        std::mem::swap(&mut self.jacobians, &mut self.saved.1);
-    }
-
-    fn restore(&mut self, _state: &Se3State) {
-        self.save();
-    }
-
-    fn retract(&self, s: &Se3State, delta: &SVector<f64, 8>) -> Se3State {
-        let xi = delta.fixed_rows::<6>(0).into_owned();
-        Se3State {
-            pose: retract_left(&s.pose, &xi),
-            a: s.a + delta[6],
-            b: s.b + delta[7],
-        }
-    }
 }
 
 /// SE(3) direct alignment of `current` to `reference` from `prior` (`T_cur_ref`); see the
@@ -636,46 +372,4 @@ pub fn photometric_residual_map(
         }
     });
     Ok(out)
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    /// Float tolerance: the same products summed in a different order.
-    const TOLERANCE: f32 = 1e-3;
-
-    #[test]
-    fn on_the_fly_gradient_matches_interpolated_gradient_planes() {
-        let (w, h) = (23, 17);
-        let data = (0..w * h)
-            .map(|i| {
-                let (x, y) = ((i % w) as f32, (i / w) as f32);
-                100.0 + 40.0 * (0.7 * x).sin() * (0.45 * y).cos() + 3.0 * x - 2.0 * y
-            })
-            .collect();
-        let img = Plane::new(w, h, data).expect("valid plane");
-        let g = img.gradients();
-        // Interior points, the lowest and highest allowed coordinates included.
-        let (hi_u, hi_v) = ((w - 2) as f32, (h - 2) as f32);
-        let mut points = vec![(1.0, 1.0), (hi_u, hi_v), (hi_u, 1.0), (1.0, hi_v)];
-        points.extend((0..50).map(|k| {
-            let t = k as f32 / 49.0;
-            (1.0 + t * (hi_u - 1.0), 1.0 + (1.0 - t * t) * (hi_v - 1.0))
-        }));
-        for (u, v) in points {
-            let [value, gx, gy] = sample_with_gradient(&img.data, w, h, u, v);
-            let expected = [
-                img.sample(u, v).expect("inside"),
-                g.gx.sample(u, v).expect("inside"),
-                g.gy.sample(u, v).expect("inside"),
-            ];
-            for (got, want) in [value, gx, gy].into_iter().zip(expected) {
-                assert!(
-                    (got - want).abs() < TOLERANCE,
-                    "({u}, {v}): {got} vs {want}"
-                );
-            }
-        }
-    }
 }

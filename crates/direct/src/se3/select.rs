@@ -1,0 +1,99 @@
+//! Reference pixel selection for SE(3) alignment, DSO-style: the level is cut into square
+//! cells sized so that there are about `pixel_budget` of them, and each cell keeps its pixel of
+//! largest gradient among those with a valid depth and `|grad I_ref| >= gradient_threshold`.
+//! Level `l` (intrinsics `f / 2^l`, `c / 2^l`) takes the depth of level-0 pixel `2^l p` and
+//! back-projects `P = Z K^-1 (p, 1)` into the reference camera frame (metres).
+
+use rayon::prelude::*;
+
+use super::Se3Config;
+use crate::plane::Plane;
+
+/// Selected reference pixels of one level, structure of arrays.
+#[derive(Debug, Clone, Default)]
+pub(super) struct RefLevel {
+    /// Camera-frame points, metres.
+    pub(super) x: Vec<f32>,
+    pub(super) y: Vec<f32>,
+    pub(super) z: Vec<f32>,
+    /// Grey level of the reference pixel.
+    pub(super) value: Vec<f32>,
+    /// Intrinsics of the level `(fx, fy, cx, cy)`.
+    pub(super) k: [f32; 4],
+}
+
+/// Pixels of one level: per grid cell, the largest gradient with a valid depth.
+pub(super) fn select_level(
+    img: &Plane,
+    depth0: &Plane,
+    step: usize,
+    k: [f32; 4],
+    cfg: &Se3Config,
+) -> RefLevel {
+    let (w, h) = img.size();
+    let cell = ((w * h) as f64 / cfg.pixel_budget as f64)
+        .sqrt()
+        .ceil()
+        .max(1.0) as usize;
+    let t2 = cfg.gradient_threshold * cfg.gradient_threshold;
+    let depth_at = |x: usize, y: usize| {
+        let z = depth0.data[(y * step) * depth0.width + x * step];
+        (z >= cfg.min_depth && z <= cfg.max_depth).then_some(z)
+    };
+    let bands: Vec<RefLevel> = (1..h.saturating_sub(1))
+        .step_by(cell)
+        .collect::<Vec<_>>()
+        .into_par_iter()
+        .map(|cy| {
+            let mut out = RefLevel::default();
+            // Per cell of the band: (g2, x, y, z) of the best pixel so far.
+            let cells = (w.saturating_sub(2)).div_ceil(cell);
+            let mut best: Vec<Option<(f32, usize, usize, f32)>> = vec![None; cells];
+            let mut g2 = vec![0f32; w];
+            for y in cy..(cy + cell).min(h - 1) {
+                let (up, row, down) = (img.row(y - 1), img.row(y), img.row(y + 1));
+                // Central differences, as in `Plane::gradients`; g2[x] for x in 1..w-1.
+                for (((o, (r, l)), d), u) in g2[1..w - 1]
+                    .iter_mut()
+                    .zip(row[2..].iter().zip(&row[..w - 2]))
+                    .zip(&down[1..w - 1])
+                    .zip(&up[1..w - 1])
+                {
+                    let (gx, gy) = (0.5 * (r - l), 0.5 * (d - u));
+                    *o = gx * gx + gy * gy;
+                }
+                for (ci, b) in best.iter_mut().enumerate() {
+                    let x0 = 1 + ci * cell;
+                    for (x, &g) in g2.iter().enumerate().take((x0 + cell).min(w - 1)).skip(x0) {
+                        if g >= t2 && b.map_or(true, |b| g > b.0) {
+                            if let Some(z) = depth_at(x, y) {
+                                *b = Some((g, x, y, z));
+                            }
+                        }
+                    }
+                }
+            }
+            for (_, x, y, z) in best.into_iter().flatten() {
+                let value = img.at(x, y);
+                if value.is_finite() {
+                    out.x.push((x as f32 - k[2]) / k[0] * z);
+                    out.y.push((y as f32 - k[3]) / k[1] * z);
+                    out.z.push(z);
+                    out.value.push(value);
+                }
+            }
+            out
+        })
+        .collect();
+    let mut out = RefLevel {
+        k,
+        ..RefLevel::default()
+    };
+    for band in bands {
+        out.x.extend(band.x);
+        out.y.extend(band.y);
+        out.z.extend(band.z);
+        out.value.extend(band.value);
+    }
+    out
+}
