@@ -27,7 +27,9 @@ pub struct TranslationConfig {
     pub min_step: f64,
     /// Pixels of image 1 with a smaller gradient magnitude (grey levels per pixel) are unused.
     pub gradient_threshold: f32,
-    /// At most about this many pixels per level, those with the largest gradients.
+    /// At most about this many pixels at full resolution, those with the largest gradients
+    /// (0 = no limit); coarser levels keep the same density (see
+    /// [`crate::WarpConfig::max_pixels`]).
     pub max_pixels: usize,
     /// Robust loss on residuals in sigmas (MAD scale re-estimated every iteration).
     pub loss: Loss,

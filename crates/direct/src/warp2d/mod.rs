@@ -32,6 +32,9 @@ use select::RefPixels;
 const MIN_LEVEL_SIDE: usize = 16;
 /// Reference pixels needed per parameter for a level to be used.
 const PIXELS_PER_PARAMETER: usize = 8;
+/// Coarse levels keep at least this many pixels (when that many qualify), whatever their
+/// share of [`WarpConfig::max_pixels`]: they must still find the warp reliably.
+const MIN_LEVEL_PIXELS: usize = 2000;
 
 /// The family of 2D warps.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -78,7 +81,9 @@ pub struct WarpConfig {
     pub min_relative_decrease: f64,
     /// Reference pixels with `|grad I1| <` this (grey levels per pixel) are not used.
     pub gradient_threshold: f32,
-    /// At most about this many reference pixels per level (the largest gradients are kept).
+    /// At most about this many reference pixels at full resolution (the largest gradients are
+    /// kept; 0 = no limit); level `l` keeps at most `max_pixels / 4^l`, the same density, but
+    /// not fewer than 2000 (when that many qualify).
     pub max_pixels: usize,
     /// Robust loss on residuals in sigmas.
     pub loss: Loss,
@@ -233,29 +238,8 @@ impl<const M: usize> LevelProblem<M> for Level2d<'_> {
         let img = &self.target.data;
         let r = self.reference;
         let n = r.len();
-        // A translation moves every pixel by the same fraction of a pixel: only the top-left
-        // tap differs between pixels (`floor(x + t) = x + floor(t)` for integer `x`).
-        let shift = (self.kind == WarpKind::Translation).then(|| {
-            let (tx, ty) = (h[(0, 2)].floor(), h[(1, 2)].floor());
-            (tx as isize, ty as isize, h[(0, 2)] - tx, h[(1, 2)] - ty)
-        });
-        let warp = move |i: usize| -> Option<Bilinear> {
-            let (x, y) = (r.x[i], r.y[i]);
-            if let Some((ox, oy, fx, fy)) = shift {
-                let (xi, yi) = (x as isize + ox, y as isize + oy);
-                let inside = xi >= 0 && yi >= 0 && xi + 1 < w as isize && yi + 1 < hgt as isize;
-                return inside.then(|| Bilinear {
-                    index: yi as usize * w + xi as usize,
-                    stride: w,
-                    fx,
-                    fy,
-                });
-            }
-            let z = h[(2, 0)] * x + h[(2, 1)] * y + h[(2, 2)];
-            let u = (h[(0, 0)] * x + h[(0, 1)] * y + h[(0, 2)]) / z;
-            let v = (h[(1, 0)] * x + h[(1, 1)] * y + h[(1, 2)]) / z;
-            Bilinear::new(u, v, w, hgt)
-        };
+        let taps = WarpTaps::new(&h, self.kind == WarpKind::Translation, w, hgt);
+        let warp = move |i: usize| taps.at(r.x[i], r.y[i]);
         self.residuals.resize(n, f32::NAN);
         let serial = n <= SERIAL_MAX;
         match self.target_grad {
@@ -342,6 +326,61 @@ impl<const M: usize> LevelProblem<M> for Level2d<'_> {
     }
 }
 
+/// Bilinear taps of warped reference pixels in a `w x h` target plane.
+#[derive(Debug, Clone, Copy)]
+struct WarpTaps {
+    h: Matrix3<f32>,
+    /// For a pure translation `t`: `floor(t)` and the fraction `t - floor(t)`, shared by every
+    /// pixel (`floor(x + t) = x + floor(t)` for integer `x`), so no per-pixel division or floor.
+    shift: Option<(isize, isize, f32, f32)>,
+    w: usize,
+    h_px: usize,
+}
+
+impl WarpTaps {
+    fn new(h: &Matrix3<f32>, translation: bool, w: usize, h_px: usize) -> Self {
+        let shift = translation.then(|| {
+            let (tx, ty) = (h[(0, 2)].floor(), h[(1, 2)].floor());
+            (tx as isize, ty as isize, h[(0, 2)] - tx, h[(1, 2)] - ty)
+        });
+        Self {
+            h: *h,
+            shift,
+            w,
+            h_px,
+        }
+    }
+
+    /// Taps at `H (x, y, 1)`; `None` outside the plane.
+    #[inline(always)]
+    fn at(&self, x: f32, y: f32) -> Option<Bilinear> {
+        let (w, h_px, h) = (self.w, self.h_px, &self.h);
+        if let Some((ox, oy, fx, fy)) = self.shift {
+            let (xi, yi) = (x as isize + ox, y as isize + oy);
+            let inside = xi >= 0 && yi >= 0 && xi + 1 < w as isize && yi + 1 < h_px as isize;
+            return inside.then(|| Bilinear {
+                index: yi as usize * w + xi as usize,
+                stride: w,
+                fx,
+                fy,
+            });
+        }
+        let z = h[(2, 0)] * x + h[(2, 1)] * y + h[(2, 2)];
+        let u = (h[(0, 0)] * x + h[(0, 1)] * y + h[(0, 2)]) / z;
+        let v = (h[(1, 0)] * x + h[(1, 1)] * y + h[(1, 2)]) / z;
+        Bilinear::new(u, v, w, h_px)
+    }
+}
+
+/// The pixel budget of pyramid level `level`; see [`WarpConfig::max_pixels`].
+fn level_budget(cfg: &WarpConfig, level: usize) -> usize {
+    if cfg.max_pixels == 0 {
+        return 0;
+    }
+    let scaled = cfg.max_pixels.checked_shr(2 * level as u32).unwrap_or(0);
+    scaled.max(MIN_LEVEL_PIXELS.min(cfg.max_pixels))
+}
+
 /// `D H D^-1` with `D = diag(f, f, 1)`: the same warp in coordinates scaled by `f`.
 fn rescale(h: &Matrix3<f64>, f: f64) -> Matrix3<f64> {
     let d = Matrix3::new(f, 0.0, 0.0, 0.0, f, 0.0, 0.0, 0.0, 1.0);
@@ -415,7 +454,7 @@ pub(crate) fn align_2d<const M: usize>(
     let mut last = None;
     for level in (0..levels).rev() {
         let (p1, p2) = (&pyr1.levels[level], &pyr2.levels[level]);
-        let reference = RefPixels::select(p1, cfg.gradient_threshold, cfg.max_pixels);
+        let reference = RefPixels::select(p1, cfg.gradient_threshold, level_budget(cfg, level));
         if reference.len() < min_pixels {
             if level == 0 {
                 return Err(DirectError::NoTexture {
