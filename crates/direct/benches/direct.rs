@@ -1,8 +1,10 @@
 //! Criterion benchmarks at 640x480 on the fixtures:
 //! - `translation_640x480`: [`align_translation`] with the default 4 levels and at most 20000
-//!   pixels per level (inverse compositional and forward additive);
-//! - `se3_640x480`: [`align_se3`] on two box-room renders, 4 levels, 12000-pixel budget (about 8500 selected at the two finest levels)
-//!   per level, affine brightness, Huber (reference preparation included, as for the peer);
+//!   pixels at full resolution, the same density at the coarser levels (inverse compositional
+//!   and forward additive);
+//! - `se3_640x480`: [`align_se3`] on two box-room renders, 4 levels, 12000-cell budget per
+//!   level (about 8500 pixels selected at each of the two finest levels), affine brightness,
+//!   Huber (reference preparation included, as for the peer);
 //! - `klt_500`: [`track_klt`] of 500 Shi-Tomasi corners, 21x21 window, 4 levels, without and
 //!   with the forward-backward check.
 
