@@ -388,18 +388,6 @@ fn rescale(h: &Matrix3<f64>, f: f64) -> Matrix3<f64> {
     d * h * d_inv
 }
 
-/// Everything a caller of [`align_2d`] gets back.
-pub(crate) struct Outcome2d {
-    pub h: Matrix3<f64>,
-    pub a: f64,
-    pub b: f64,
-    pub iterations: Vec<usize>,
-    pub rmse: f64,
-    pub used_fraction: f64,
-    pub covariance: DMatrix<f64>,
-    pub converged: bool,
-}
-
 /// Coarse-to-fine robust alignment of `img2` to `img1` for `kind` with `M = k + 2` parameters.
 pub(crate) fn align_2d<const M: usize>(
     kind: WarpKind,
@@ -408,7 +396,7 @@ pub(crate) fn align_2d<const M: usize>(
     initial: &Matrix3<f64>,
     cfg: &WarpConfig,
     forward_additive: bool,
-) -> Result<Outcome2d, DirectError> {
+) -> Result<WarpResult, DirectError> {
     debug_assert_eq!(M, kind.parameters() + 2);
     img1.check_same_size(img2)?;
     img1.check_min_size(MIN_LEVEL_SIDE)?;
@@ -520,7 +508,7 @@ pub(crate) fn align_2d<const M: usize>(
     }
     let (out, rmse) = last.expect("level 0 is always run or returns an error");
     let cov: SMatrix<f64, M, M> = covariance(&out.hessian, out.weighted_cost, out.valid);
-    Ok(Outcome2d {
+    Ok(WarpResult {
         h: state.h / state.h[(2, 2)],
         a: state.a,
         b: state.b,
@@ -556,8 +544,7 @@ pub fn align_affine(
     initial: &Matrix3<f64>,
     cfg: &WarpConfig,
 ) -> Result<WarpResult, DirectError> {
-    let out = align_2d::<8>(WarpKind::Affine, img1, img2, initial, cfg, false)?;
-    Ok(into_result(out))
+    align_2d::<8>(WarpKind::Affine, img1, img2, initial, cfg, false)
 }
 
 /// Homography `I2(H x) = a I1(x) + b` from the initial guess `initial` (the identity when
@@ -568,19 +555,5 @@ pub fn align_homography(
     initial: &Matrix3<f64>,
     cfg: &WarpConfig,
 ) -> Result<WarpResult, DirectError> {
-    let out = align_2d::<10>(WarpKind::Homography, img1, img2, initial, cfg, false)?;
-    Ok(into_result(out))
-}
-
-fn into_result(out: Outcome2d) -> WarpResult {
-    WarpResult {
-        h: out.h,
-        a: out.a,
-        b: out.b,
-        iterations: out.iterations,
-        rmse: out.rmse,
-        used_fraction: out.used_fraction,
-        covariance: out.covariance,
-        converged: out.converged,
-    }
+    align_2d::<10>(WarpKind::Homography, img1, img2, initial, cfg, false)
 }
