@@ -16,7 +16,7 @@ use nalgebra::Vector2;
 use rayon::prelude::*;
 
 use crate::error::DirectError;
-use crate::plane::{Plane, Pyramid};
+use crate::plane::Plane;
 
 /// Smallest side of a KLT pyramid level, pixels.
 const MIN_LEVEL_SIDE: usize = 8;
@@ -194,30 +194,43 @@ fn min_eigenvalue_map(img: &Plane) -> Vec<f32> {
 
 /// An image pyramid whose coarse levels are padded by replicated pixels.
 ///
-/// Level `l > 0` is padded by `pads[l]` pixels on each side (level 0 is not, to avoid copying
-/// the largest image), so that windows near the border take the fast sampling path; pixel
-/// `(x, y)` of level `l` is stored at `(x + pads[l], y + pads[l])`.
-struct PaddedPyramid {
-    images: Vec<Plane>,
+/// Level `l > 0` is padded by `pad` pixels on each side (level 0 is the caller's image, not
+/// copied), so that windows near the border take the fast sampling path; pixel `(x, y)` of
+/// level `l` is stored at `(x + pads[l], y + pads[l])`.
+struct PaddedPyramid<'a> {
+    base: &'a Plane,
+    coarse: Vec<Plane>,
     /// Unpadded `(width, height)` of each level.
     sizes: Vec<(usize, usize)>,
     pads: Vec<usize>,
 }
 
-impl PaddedPyramid {
-    fn new(img: &Plane, levels: usize, pad: usize) -> Self {
-        let mut levels = Pyramid::new(img.clone(), levels, MIN_LEVEL_SIDE).levels;
-        let sizes = levels.iter().map(Plane::size).collect();
-        let pads = (0..levels.len())
+impl<'a> PaddedPyramid<'a> {
+    fn new(img: &'a Plane, levels: usize, pad: usize) -> Self {
+        let coarse = img.coarser_levels(levels, MIN_LEVEL_SIDE);
+        let sizes = std::iter::once(img.size())
+            .chain(coarse.iter().map(Plane::size))
+            .collect();
+        let pads = (0..=coarse.len())
             .map(|l| if l == 0 { 0 } else { pad })
             .collect();
-        for level in levels.iter_mut().skip(1) {
-            *level = padded(level, pad);
-        }
         Self {
-            images: levels,
+            base: img,
+            coarse: coarse.iter().map(|level| padded(level, pad)).collect(),
             sizes,
             pads,
+        }
+    }
+
+    fn levels(&self) -> usize {
+        self.coarse.len() + 1
+    }
+
+    fn level(&self, l: usize) -> &Plane {
+        if l == 0 {
+            self.base
+        } else {
+            &self.coarse[l - 1]
         }
     }
 }
@@ -368,13 +381,13 @@ fn track_point(
 ) -> (Vector2<f32>, TrackStatus, f32) {
     let win = cfg.window;
     let npix = (win * win) as f32;
-    let levels = from.images.len().min(to.images.len());
+    let levels = from.levels().min(to.levels());
     let mut flow = Vector2::<f32>::zeros();
     let mut error = 0.0;
     for level in (0..levels).rev() {
         let scale = 0.5f32.powi(level as i32);
         let p = start * scale;
-        let (img, next) = (&from.images[level], &to.images[level]);
+        let (img, next) = (from.level(level), to.level(level));
         let (pad_from, pad) = (from.pads[level] as f32, to.pads[level] as f32);
         // The template with a one-pixel ring; its central differences are the bilinearly
         // sampled gradients (both operations are linear and share the bilinear weights).

@@ -118,6 +118,21 @@ impl Plane {
         Some(tap.apply(&self.data))
     }
 
+    /// Levels `1..levels` of the pyramid of `self` (as [`Pyramid::new`] builds them, without
+    /// copying `self`): each level is [`Plane::pyr_down`] of the previous one, stopping before a
+    /// side would drop below `min_side`.
+    pub fn coarser_levels(&self, levels: usize, min_side: usize) -> Vec<Plane> {
+        let mut out: Vec<Plane> = Vec::with_capacity(levels.saturating_sub(1));
+        while out.len() + 1 < levels.max(1) {
+            let last = out.last().unwrap_or(self);
+            if last.width.div_ceil(2) < min_side || last.height.div_ceil(2) < min_side {
+                break;
+            }
+            out.push(last.pyr_down());
+        }
+        out
+    }
+
     /// Half-resolution plane: `[1 4 6 4 1] / 16` blur in both directions, then every even
     /// pixel; the result is `ceil(w / 2) x ceil(h / 2)`.
     pub fn pyr_down(&self) -> Plane {
@@ -253,16 +268,10 @@ pub struct Pyramid {
 impl Pyramid {
     /// Up to `levels` levels (at least 1), stopping before a side would drop below `min_side`.
     pub fn new(base: Plane, levels: usize, min_side: usize) -> Self {
-        let mut out = vec![base];
-        while out.len() < levels.max(1) {
-            let last = out.last().expect("pyramid has a base level");
-            if last.width.div_ceil(2) < min_side || last.height.div_ceil(2) < min_side {
-                break;
-            }
-            let next = last.pyr_down();
-            out.push(next);
+        let coarse = base.coarser_levels(levels, min_side);
+        Self {
+            levels: std::iter::once(base).chain(coarse).collect(),
         }
-        Self { levels: out }
     }
 }
 

@@ -140,7 +140,7 @@ impl Se3Reference {
                 "levels, pixel_budget and max_iterations must be positive",
             ));
         }
-        let coarse = coarse_levels(&frame.image, cfg.levels);
+        let coarse = frame.image.coarser_levels(cfg.levels, MIN_LEVEL_SIDE);
         let p = frame.pinhole;
         let mut levels = Vec::with_capacity(coarse.len() + 1);
         for (l, img) in std::iter::once(&frame.image).chain(&coarse).enumerate() {
@@ -207,7 +207,7 @@ impl Se3Reference {
             }
             None => current,
         };
-        let coarse = coarse_levels(current, self.levels.len());
+        let coarse = current.coarser_levels(self.levels.len(), MIN_LEVEL_SIDE);
         let mut state = Se3State {
             pose: vofront_geometry::lie::normalized(prior),
             a: 1.0,
@@ -282,20 +282,6 @@ impl Se3Reference {
             "the pyramid has no full-resolution level",
         ))
     }
-}
-
-/// Levels `1..levels` of the pyramid of `base` (as [`crate::plane::Pyramid::new`] builds them),
-/// without copying `base`.
-fn coarse_levels(base: &Plane, levels: usize) -> Vec<Plane> {
-    let mut out: Vec<Plane> = Vec::with_capacity(levels.saturating_sub(1));
-    while out.len() + 1 < levels.max(1) {
-        let last = out.last().unwrap_or(base);
-        if last.width.div_ceil(2) < MIN_LEVEL_SIDE || last.height.div_ceil(2) < MIN_LEVEL_SIDE {
-            break;
-        }
-        out.push(last.pyr_down());
-    }
-    out
 }
 
 /// SE(3) direct alignment of `current` to `reference` from `prior` (`T_cur_ref`); see the
