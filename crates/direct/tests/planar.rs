@@ -55,6 +55,27 @@ fn noiseless_subpixel_shift_is_recovered_by_both_methods() {
     }
 }
 
+/// Threshold 0 and no pixel limit: every interior pixel is a reference pixel (the border
+/// ones have no central difference and must never be chosen).
+#[test]
+fn zero_threshold_without_budget_uses_every_interior_pixel() {
+    let (i1, i2) = shifted_pair(4, -1.23, 0.77);
+    let cfg = TranslationConfig {
+        gradient_threshold: 0.0,
+        max_pixels: 0,
+        ..TranslationConfig::default()
+    };
+    let fit = align_translation(&i1, &i2, &cfg).unwrap();
+    let e = error(fit.d, -1.23, 0.77);
+    assert!(e < NOISELESS_TOLERANCE, "{:?} error {e}", fit.d);
+    let interior = ((W - 2) * (H - 2)) as f64 / (W * H) as f64;
+    assert!(
+        fit.used_fraction > 0.95 * interior && fit.used_fraction <= interior,
+        "{}",
+        fit.used_fraction
+    );
+}
+
 #[test]
 fn noisy_shift_is_recovered_and_covariance_is_consistent() {
     let (i1, i2) = shifted_pair(5, -3.3, 4.45);

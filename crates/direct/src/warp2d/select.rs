@@ -24,8 +24,9 @@ impl RefPixels {
         if w < 3 || h < 3 {
             return out;
         }
-        // Squared central-difference gradients, row-major; 0 on the border.
-        let mut g2 = vec![0f32; w * h];
+        // Squared central-difference gradients, row-major; -inf on the border (never selected,
+        // whatever the threshold).
+        let mut g2 = vec![f32::NEG_INFINITY; w * h];
         for y in 1..h - 1 {
             let (up, row, down) = (img.row(y - 1), img.row(y), img.row(y + 1));
             for (((o, (r, l)), d), u) in g2[y * w + 1..(y + 1) * w - 1]
