@@ -27,7 +27,8 @@ pub struct DirectTrackerConfig {
     pub keyframe: KeyframePolicy,
     /// Smallest inlier ratio for a frame to count as tracked.
     pub min_inlier_ratio: f64,
-    /// Accepted brightness gain range `[1/g, g]`.
+    /// Accepted brightness gain range `[1/g, g]` (the aligner's `Se3Config::max_gain` for this
+    /// tracker; a gain outside it fails the alignment).
     pub max_gain: f64,
 }
 
@@ -111,19 +112,20 @@ impl Tracker for DirectTracker {
                 .restart(made, predicted, "no keyframe".into(), start);
         };
         let prior = predicted.inverse() * kf.t_wc;
+        let se3 = Se3Config {
+            max_gain: self.cfg.max_gain,
+            ..self.cfg.se3
+        };
         let fit = kf
             .reference
-            .align(&current, &prior, &self.cfg.se3)
+            .align(&current, &prior, &se3)
             .map_err(|e| e.to_string())
             .and_then(|r| {
-                let gain_ok = r.a > 1.0 / self.cfg.max_gain && r.a < self.cfg.max_gain;
                 if r.inlier_ratio < self.cfg.min_inlier_ratio {
                     Err(format!(
                         "inlier ratio {:.2} below {:.2}",
                         r.inlier_ratio, self.cfg.min_inlier_ratio
                     ))
-                } else if !gain_ok {
-                    Err(format!("implausible brightness gain {:.2}", r.a))
                 } else {
                     Ok(r)
                 }

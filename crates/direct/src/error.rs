@@ -63,6 +63,15 @@ pub enum DirectError {
     /// A configuration value out of its domain.
     #[error("invalid configuration: {0}")]
     InvalidConfig(&'static str),
+    /// The estimated brightness gain `a` left `[1 / max_gain, max_gain]`: the alignment failed
+    /// (a wrong pose "explains" the current image by flattening the reference, `a -> 0`).
+    #[error("implausible brightness gain {a:.3} (accepted range [1/{max_gain}, {max_gain}]): alignment failed")]
+    ImplausibleGain {
+        /// The gain found.
+        a: f64,
+        /// The accepted bound.
+        max_gain: f64,
+    },
     /// An input value (pose, brightness) is NaN or infinite.
     #[error("input contains NaN or infinite values")]
     NotFinite,

@@ -299,4 +299,68 @@ fn bad_inputs_are_typed_errors() {
         ),
         Err(DirectError::SizeMismatch { .. })
     ));
+    let bad_gain = Se3Config {
+        max_gain: 0.5,
+        ..Se3Config::default()
+    };
+    let current = Plane::from_gray_f32(&p.second.image);
+    assert!(matches!(
+        align_se3(&frame(&p), &current, &Isometry3::identity(), &bad_gain),
+        Err(DirectError::InvalidConfig(_))
+    ));
+}
+
+/// Large motions (up to 15 cm and 7 degrees) either converge to the truth or fail with an
+/// error, never a confident wrong pose; estimating the brightness only at the finest levels
+/// (the default) widens the basin over estimating it at every level, where a misaligned coarse
+/// level drives the gain to 0.
+#[test]
+fn large_motions_converge_or_fail_loudly() {
+    let camera = half_camera(default_camera());
+    let room = Scene::box_room(5);
+    let t_w1 = pose_wc([0.0, 0.0, 0.0], 0.0, 0.0, 0.0);
+    let first = room.render(&camera, W, H, &t_w1);
+    let reference = RgbdFrame::new(
+        Plane::from_gray_f32(&first.image),
+        Plane::from_gray_f32(&first.depth),
+        &camera,
+    )
+    .unwrap();
+    let limit = TRANSLATION_TOLERANCE_PER_METRE * median_depth(&first);
+    let motions = [
+        ([0.12, 0.0, 0.0], 0.0, 0.0, 0.0),
+        ([0.0, -0.08, 0.1], 0.0, 0.0, 0.0),
+        ([0.0, 0.0, 0.0], 0.10, 0.0, 0.0),
+        ([0.0, 0.0, 0.0], 0.0, -0.08, 0.05),
+        ([0.08, 0.04, -0.05], 0.06, 0.04, 0.02),
+        ([-0.1, 0.05, 0.08], -0.05, 0.06, -0.03),
+        ([0.15, -0.05, 0.0], 0.1, 0.0, 0.0),
+        ([0.0, 0.1, 0.1], 0.0, 0.12, 0.05),
+    ];
+    let all_levels = Se3Config {
+        brightness_levels: Se3Config::default().levels,
+        ..Se3Config::default()
+    };
+    let mut converged = [0usize; 2];
+    for (position, yaw, pitch, roll) in motions {
+        let t_w2 = pose_wc(position, yaw, pitch, roll);
+        let truth = t_w2.inverse() * t_w1;
+        let current = Plane::from_gray_f32(&room.render(&camera, W, H, &t_w2).image);
+        for (count, cfg) in converged.iter_mut().zip([Se3Config::default(), all_levels]) {
+            if let Ok(fit) = align_se3(&reference, &current, &Isometry3::identity(), &cfg) {
+                let (rot, trans) = pose_error(&fit.pose, &truth);
+                assert!(
+                    rot < ROTATION_TOLERANCE_DEG && trans < limit,
+                    "{position:?} {yaw} {pitch} {roll}: a result {rot} deg, {trans} m off"
+                );
+                *count += 1;
+            }
+        }
+    }
+    assert!(
+        converged[0] >= motions.len() * 3 / 4 && converged[0] > converged[1],
+        "converged: default {}, brightness at every level {}",
+        converged[0],
+        converged[1]
+    );
 }

@@ -54,6 +54,14 @@ pub struct Se3Config {
     pub loss: Loss,
     /// Estimate `(a, b)` of `I_cur = a I_ref + b`; otherwise they stay `1, 0`.
     pub affine_brightness: bool,
+    /// With `affine_brightness`, `(a, b)` are estimated at this many of the finest levels and
+    /// held at `(1, 0)` above them. At a coarse level the pose is still far off, and a joint
+    /// fit there drives the gain towards 0 (a misaligned image is "explained" by a flat one),
+    /// from which the pose does not recover.
+    pub brightness_levels: usize,
+    /// With `affine_brightness`, a final gain outside `[1 / max_gain, max_gain]` is reported as
+    /// [`DirectError::ImplausibleGain`]: the alignment failed.
+    pub max_gain: f64,
     /// Iteration limit per level.
     pub max_iterations: usize,
     /// Stop when `|delta|` (metres and radians) is below this.
@@ -84,6 +92,8 @@ impl Default for Se3Config {
             gradient_threshold: 3.0,
             loss: Loss::Huber(1.345),
             affine_brightness: true,
+            brightness_levels: 2,
+            max_gain: 2.0,
             max_iterations: 30,
             min_step: 1e-6,
             min_step_sigmas: 0.2,
@@ -112,8 +122,13 @@ pub struct Se3Result {
     pub cost: f64,
     /// Root-mean-square residual at full resolution, grey levels.
     pub rmse: f64,
-    /// Fraction of the valid residuals within `inlier_sigmas` scales.
+    /// Fraction of the valid residuals within `inlier_sigmas` scales `sigma`. The scale follows
+    /// the residuals, so a failed alignment can still score high here: judge it by `sigma` and
+    /// `rmse` against the image noise (a few grey levels when aligned).
     pub inlier_ratio: f64,
+    /// Robust residual scale at full resolution (`1.4826 median |r|`, floored at
+    /// `min_sigma`), grey levels.
+    pub sigma: f64,
     /// Valid residuals at full resolution.
     pub valid_pixels: usize,
     /// Gauss-Newton covariance of the left pose increment `(rho, phi)`, metres and radians.
@@ -193,6 +208,9 @@ impl Se3Reference {
         if !prior_ok {
             return Err(DirectError::NotFinite);
         }
+        if cfg.max_gain.is_nan() || cfg.max_gain < 1.0 {
+            return Err(DirectError::InvalidConfig("max_gain must be at least 1"));
+        }
         if current.size() != self.size {
             return Err(DirectError::SizeMismatch {
                 expected: self.size,
@@ -249,7 +267,12 @@ impl Se3Reference {
                 jacobians: Vec::new(),
                 saved: (Vec::new(), Vec::new()),
             };
-            let out = run_level(&mut problem, state, &settings)?;
+            let mut level_settings = settings;
+            if level >= cfg.brightness_levels {
+                level_settings.fixed[6] = true;
+                level_settings.fixed[7] = true;
+            }
+            let out = run_level(&mut problem, state, &level_settings)?;
             iterations[level] = out.iterations;
             state = out.state;
             if level == 0 {
@@ -263,6 +286,13 @@ impl Se3Reference {
                     });
                 let valid = out.valid.max(1) as f64;
                 let cov = covariance(&out.hessian, out.weighted_cost, out.valid);
+                let gain_ok = state.a >= 1.0 / cfg.max_gain && state.a <= cfg.max_gain;
+                if cfg.affine_brightness && !gain_ok {
+                    return Err(DirectError::ImplausibleGain {
+                        a: state.a,
+                        max_gain: cfg.max_gain,
+                    });
+                }
                 return Ok(Se3Result {
                     pose: state.pose,
                     a: state.a,
@@ -271,6 +301,7 @@ impl Se3Reference {
                     cost: out.cost,
                     rmse: (sum_sq / valid).sqrt(),
                     inlier_ratio: inliers as f64 / valid,
+                    sigma: f64::from(out.scale),
                     valid_pixels: out.valid,
                     covariance: cov.fixed_view::<6, 6>(0, 0).into_owned(),
                     reason: out.reason,
