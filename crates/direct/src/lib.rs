@@ -5,7 +5,8 @@
 //! - [`translation`]: robust coarse-to-fine 2D translation `I2(x + d) = I1(x)`;
 //! - [`warp2d`]: affine and homography Lucas-Kanade with optional brightness `a I + b`;
 //! - [`rgbd`]: reference frames (grey image + metric depth), undistortion, pixel selection;
-//! - [`se3`]: SE(3) direct image alignment `I_cur(pi(K T_cur_ref pi^-1(p, d))) = a I_ref(p) + b`;
+//! - [`se3`]: SE(3) direct image alignment `I_cur(pi(K T_cur_ref pi^-1(p, d))) = a I_ref(p) + b`,
+//!   from a dense RGB-D reference or from given pixels with inverse depths;
 //! - [`klt`]: Shi-Tomasi corners and pyramidal Lucas-Kanade tracking.
 //!
 //! Every aligner runs a robust (Huber or Student-t with MAD scale) Levenberg-Marquardt loop
@@ -26,7 +27,9 @@ pub use error::DirectError;
 pub use klt::{good_features_to_track, track_klt, KltConfig, KltTrack, TrackStatus};
 pub use plane::{Gradients, Plane, Pyramid};
 pub use rgbd::{RgbdFrame, Undistorter};
-pub use se3::{align_se3, photometric_residual_map, Se3Config, Se3Reference, Se3Result};
+pub use se3::{
+    align_se3, photometric_residual_map, InverseDepthPoint, Se3Config, Se3Reference, Se3Result,
+};
 pub use translation::{align_translation, TranslationConfig, TranslationResult};
 pub use warp2d::{
     align_affine, align_homography, TranslationMethod, WarpConfig, WarpKind, WarpResult,

@@ -1,8 +1,9 @@
 //! SE(3) direct alignment on rendered RGB-D views of the fixtures' box room.
 
-use nalgebra::Isometry3;
+use nalgebra::{Isometry3, Vector2};
 use vofront_direct::{
-    align_se3, photometric_residual_map, DirectError, Plane, RgbdFrame, Se3Config,
+    align_se3, photometric_residual_map, DirectError, InverseDepthPoint, Plane, RgbdFrame,
+    Se3Config, Se3Reference,
 };
 use vofront_fixtures::image2d::{add_gaussian_noise, brightness, occlude_patches};
 use vofront_fixtures::scene::{default_camera, distorted_camera, pose_wc, Rendered, Scene};
@@ -363,4 +364,57 @@ fn large_motions_converge_or_fail_loudly() {
         converged[0],
         converged[1]
     );
+}
+
+/// Sparse reference points with inverse depths (here: every 3rd pixel of strong gradient, depth
+/// from the render) give the same accuracy as the dense RGB-D reference; unusable points are
+/// skipped, and no usable point at all is an error.
+#[test]
+fn sparse_inverse_depth_reference_is_accurate() {
+    let p = pair(half_camera(default_camera()));
+    let image = Plane::from_gray_f32(&p.first.image);
+    let depth = Plane::from_gray_f32(&p.first.depth);
+    let g = image.gradients();
+    let mut points: Vec<InverseDepthPoint> = (0..image.data.len())
+        .filter(|&i| {
+            let (gx, gy) = (g.gx.data[i], g.gy.data[i]);
+            i % 3 == 0 && gx * gx + gy * gy > 100.0 && depth.data[i] > 0.0
+        })
+        .map(|i| InverseDepthPoint {
+            pixel: Vector2::new((i % image.width) as f32, (i / image.width) as f32),
+            inverse_depth: 1.0 / depth.data[i],
+        })
+        .collect();
+    let usable = points.len();
+    assert!(usable > 1000, "{usable}");
+    let junk = [
+        (Vector2::new(f32::NAN, 3.0), 0.5),
+        (Vector2::new(10.0, 10.0), 0.0),
+        (Vector2::new(10.0, 10.0), -1.0),
+        (Vector2::new(10.0, 10.0), f32::NAN),
+        (Vector2::new(-5.0, 10.0), 0.5),
+        (Vector2::new(10.0, 1e6), 0.5),
+    ];
+    points.extend(
+        junk.iter()
+            .map(|&(pixel, inverse_depth)| InverseDepthPoint {
+                pixel,
+                inverse_depth,
+            }),
+    );
+    let cfg = Se3Config::default();
+    let pinhole = p.camera.pinhole;
+    let reference =
+        Se3Reference::from_inverse_depths(&image, pinhole, None, &points, &cfg).unwrap();
+    assert_eq!(reference.selected()[0], usable);
+    let current = Plane::from_gray_f32(&p.second.image);
+    let fit = reference
+        .align(&current, &Isometry3::identity(), &cfg)
+        .unwrap();
+    assert_accurate(&fit.pose, &p, "sparse inverse depths");
+    let only_junk: Vec<InverseDepthPoint> = points[usable..].to_vec();
+    assert!(matches!(
+        Se3Reference::from_inverse_depths(&image, pinhole, None, &only_junk, &cfg),
+        Err(DirectError::NoValidDepth)
+    ));
 }

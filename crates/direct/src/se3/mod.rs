@@ -16,7 +16,8 @@
 //! Level `l` uses `f / 2^l`, `c / 2^l` and depth sampled at level-0 pixel `2^l p`.
 //! Each level runs robust Levenberg-Marquardt (Huber or Student-t weights, MAD scale
 //! re-estimated every iteration, normal equations reduced in parallel), coarse to fine, from the
-//! prior pose. Submodules: `select` (the pixels of each level), `level` (residuals and
+//! prior pose. Submodules: `select` (the pixels of each level), `sparse` (a reference from given
+//! pixels with inverse depths, [`Se3Reference::from_inverse_depths`]), `level` (residuals and
 //! Jacobian rows of one level).
 
 use std::sync::Arc;
@@ -32,9 +33,11 @@ use crate::rgbd::{RgbdFrame, Undistorter};
 
 mod level;
 mod select;
+mod sparse;
 
 use level::{Se3Level, Se3State};
-use select::{select_level, RefLevel};
+use select::{level_intrinsics, select_level, RefLevel};
+pub use sparse::InverseDepthPoint;
 
 /// Smallest side of the coarsest pyramid level, pixels.
 const MIN_LEVEL_SIDE: usize = 20;
@@ -156,18 +159,14 @@ impl Se3Reference {
             ));
         }
         let coarse = frame.image.coarser_levels(cfg.levels, MIN_LEVEL_SIDE);
-        let p = frame.pinhole;
-        let mut levels = Vec::with_capacity(coarse.len() + 1);
-        for (l, img) in std::iter::once(&frame.image).chain(&coarse).enumerate() {
-            let s = 0.5f32.powi(l as i32);
-            let k = [
-                p.fx as f32 * s,
-                p.fy as f32 * s,
-                p.cx as f32 * s,
-                p.cy as f32 * s,
-            ];
-            levels.push(select_level(img, &frame.depth, 1 << l, k, cfg));
-        }
+        let levels: Vec<RefLevel> = std::iter::once(&frame.image)
+            .chain(&coarse)
+            .enumerate()
+            .map(|(l, img)| {
+                let k = level_intrinsics(&frame.pinhole, l);
+                select_level(img, &frame.depth, 1 << l, k, cfg)
+            })
+            .collect();
         if levels[0].x.is_empty() {
             let any_depth = frame
                 .depth

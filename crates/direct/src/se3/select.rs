@@ -6,6 +6,8 @@
 
 use rayon::prelude::*;
 
+use vofront_geometry::Pinhole;
+
 use super::Se3Config;
 use crate::plane::Plane;
 
@@ -20,6 +22,18 @@ pub(super) struct RefLevel {
     pub(super) value: Vec<f32>,
     /// Intrinsics of the level `(fx, fy, cx, cy)`.
     pub(super) k: [f32; 4],
+}
+
+/// Intrinsics `(fx, fy, cx, cy) / 2^level` of pyramid level `level` (level-`l` pixel `x` sits at
+/// level-0 pixel `2^l x`).
+pub(super) fn level_intrinsics(p: &Pinhole, level: usize) -> [f32; 4] {
+    let s = 0.5f32.powi(level as i32);
+    [
+        p.fx as f32 * s,
+        p.fy as f32 * s,
+        p.cx as f32 * s,
+        p.cy as f32 * s,
+    ]
 }
 
 /// Pixels of one level: per grid cell, the largest gradient with a valid depth.
