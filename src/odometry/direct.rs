@@ -4,9 +4,9 @@
 //! starts from `T_cur_kf = T_wc'^-1 T_w_kf` and minimises
 //! `I_cur(pi(K T_cur_kf pi^-1(p, d_p))) - (a I_kf(p) + b)` over the keyframe's selected pixels
 //! ([`vofront_direct::Se3Reference`]); the frame's pose is then `T_wc = T_w_kf T_cur_kf^-1`.
-//! A result is rejected (frame lost) when the alignment fails, when too few residuals are
-//! inliers, or when the brightness gain left a plausible range (a flat image can be "explained"
-//! by `a = 0`).
+//! A result is rejected (frame lost) when the alignment fails (including a brightness gain
+//! outside `Se3Config::max_gain`: a flat image can be "explained" by `a = 0`) or when too few
+//! residuals are inliers.
 
 use std::time::Instant;
 
@@ -27,9 +27,6 @@ pub struct DirectTrackerConfig {
     pub keyframe: KeyframePolicy,
     /// Smallest inlier ratio for a frame to count as tracked.
     pub min_inlier_ratio: f64,
-    /// Accepted brightness gain range `[1/g, g]` (the aligner's `Se3Config::max_gain` for this
-    /// tracker; a gain outside it fails the alignment).
-    pub max_gain: f64,
 }
 
 impl Default for DirectTrackerConfig {
@@ -38,7 +35,6 @@ impl Default for DirectTrackerConfig {
             se3: Se3Config::default(),
             keyframe: KeyframePolicy::default(),
             min_inlier_ratio: 0.4,
-            max_gain: 2.0,
         }
     }
 }
@@ -112,13 +108,9 @@ impl Tracker for DirectTracker {
                 .restart(made, predicted, "no keyframe".into(), start);
         };
         let prior = predicted.inverse() * kf.t_wc;
-        let se3 = Se3Config {
-            max_gain: self.cfg.max_gain,
-            ..self.cfg.se3
-        };
         let fit = kf
             .reference
-            .align(&current, &prior, &se3)
+            .align(&current, &prior, &self.cfg.se3)
             .map_err(|e| e.to_string())
             .and_then(|r| {
                 if r.inlier_ratio < self.cfg.min_inlier_ratio {

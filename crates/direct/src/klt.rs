@@ -196,29 +196,21 @@ fn min_eigenvalue_map(img: &Plane) -> Vec<f32> {
 ///
 /// Level `l > 0` is padded by `pad` pixels on each side (level 0 is the caller's image, not
 /// copied), so that windows near the border take the fast sampling path; pixel `(x, y)` of
-/// level `l` is stored at `(x + pads[l], y + pads[l])`.
+/// level `l` is stored at `(x + pad(l), y + pad(l))`.
 struct PaddedPyramid<'a> {
     base: &'a Plane,
+    /// Levels `1..`, each padded by `pad` pixels on every side.
     coarse: Vec<Plane>,
-    /// Unpadded `(width, height)` of each level.
-    sizes: Vec<(usize, usize)>,
-    pads: Vec<usize>,
+    pad: usize,
 }
 
 impl<'a> PaddedPyramid<'a> {
     fn new(img: &'a Plane, levels: usize, pad: usize) -> Self {
         let coarse = img.coarser_levels(levels, MIN_LEVEL_SIDE);
-        let sizes = std::iter::once(img.size())
-            .chain(coarse.iter().map(Plane::size))
-            .collect();
-        let pads = (0..=coarse.len())
-            .map(|l| if l == 0 { 0 } else { pad })
-            .collect();
         Self {
             base: img,
             coarse: coarse.iter().map(|level| padded(level, pad)).collect(),
-            sizes,
-            pads,
+            pad,
         }
     }
 
@@ -226,12 +218,28 @@ impl<'a> PaddedPyramid<'a> {
         self.coarse.len() + 1
     }
 
+    /// The stored (padded above level 0) plane of level `l`.
     fn level(&self, l: usize) -> &Plane {
         if l == 0 {
             self.base
         } else {
             &self.coarse[l - 1]
         }
+    }
+
+    /// Padding of level `l`, pixels.
+    fn pad(&self, l: usize) -> usize {
+        if l == 0 {
+            0
+        } else {
+            self.pad
+        }
+    }
+
+    /// Unpadded `(width, height)` of level `l`.
+    fn size(&self, l: usize) -> (usize, usize) {
+        let (w, h) = self.level(l).size();
+        (w - 2 * self.pad(l), h - 2 * self.pad(l))
     }
 }
 
@@ -388,7 +396,7 @@ fn track_point(
         let scale = 0.5f32.powi(level as i32);
         let p = start * scale;
         let (img, next) = (from.level(level), to.level(level));
-        let (pad_from, pad) = (from.pads[level] as f32, to.pads[level] as f32);
+        let (pad_from, pad) = (from.pad(level) as f32, to.pad(level) as f32);
         // The template with a one-pixel ring; its central differences are the bilinearly
         // sampled gradients (both operations are linear and share the bilinear weights).
         sample_patch(img, p.x + pad_from, p.y + pad_from, win + 2, &mut s.ring);
@@ -424,13 +432,13 @@ fn track_point(
             return (start + flow / scale, TrackStatus::SmallEigenvalue, 0.0);
         }
         let mut q = p + flow;
+        let (w, h) = to.size(level);
         for _ in 0..cfg.max_iterations {
             sample_patch(next, q.x + pad, q.y + pad, win, &mut s.target);
             let [bx, by] = lane_sums2(&s.target, &s.template, &s.tgx, &s.tgy);
             let dx = -(gyy * bx - gxy * by) / det;
             let dy = -(gxx * by - gxy * bx) / det;
             q += Vector2::new(dx, dy);
-            let (w, h) = to.sizes[level];
             if !(q.x >= 0.0 && q.y >= 0.0 && q.x <= (w - 1) as f32 && q.y <= (h - 1) as f32) {
                 return (q / scale, TrackStatus::OutOfBounds, 0.0);
             }

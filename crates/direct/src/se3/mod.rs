@@ -10,15 +10,11 @@
 //! `c = (g_x f_x / Z, g_y f_y / Z, -(c_x X + c_y Y) / Z)` and rotation part `P' x c`;
 //! `dr/da = -I_ref(p)`, `dr/db = -1`.
 //!
-//! Pixels are chosen per pyramid level DSO-style: the image is cut into square cells sized so
-//! that there are about `pixel_budget` of them, and each cell keeps its pixel of largest
-//! gradient among those with a valid depth and `|grad I_ref| >= gradient_threshold`.
-//! Level `l` uses `f / 2^l`, `c / 2^l` and depth sampled at level-0 pixel `2^l p`.
-//! Each level runs robust Levenberg-Marquardt (Huber or Student-t weights, MAD scale
+//! Pixels are chosen per pyramid level, DSO-style (module `select`), or given with their
+//! inverse depths (module `sparse`); level `l` uses `f / 2^l`, `c / 2^l`. Each level runs robust Levenberg-Marquardt (Huber or Student-t weights, MAD scale
 //! re-estimated every iteration, normal equations reduced in parallel), coarse to fine, from the
-//! prior pose. Submodules: `select` (the pixels of each level), `sparse` (a reference from given
-//! pixels with inverse depths, [`Se3Reference::from_inverse_depths`]), `level` (residuals and
-//! Jacobian rows of one level).
+//! prior pose, with `(a, b)` estimated only at the `brightness_levels` finest levels. Module
+//! `level` holds the residuals and Jacobian rows of one level.
 
 use std::sync::Arc;
 
@@ -231,9 +227,6 @@ impl Se3Reference {
             b: 0.0,
         };
         let mut iterations = vec![0; self.levels.len()];
-        let mut fixed = [false; 8];
-        fixed[6] = !cfg.affine_brightness;
-        fixed[7] = !cfg.affine_brightness;
         let step_weights = SVector::<f64, 8>::from([1.0, 1.0, 1.0, 1.0, 1.0, 1.0, 1e-2, 1e-4]);
         let settings = LmSettings {
             loss: cfg.loss,
@@ -244,7 +237,7 @@ impl Se3Reference {
             step_weights,
             min_relative_decrease: cfg.min_relative_decrease,
             max_condition: cfg.max_condition,
-            fixed,
+            fixed: [false; 8],
             min_valid: MIN_VALID,
             serial_max: SERIAL_MAX,
         };
@@ -266,11 +259,9 @@ impl Se3Reference {
                 jacobians: Vec::new(),
                 saved: (Vec::new(), Vec::new()),
             };
+            let brightness = cfg.affine_brightness && level < cfg.brightness_levels;
             let mut level_settings = settings;
-            if level >= cfg.brightness_levels {
-                level_settings.fixed[6] = true;
-                level_settings.fixed[7] = true;
-            }
+            level_settings.fixed[6..].fill(!brightness);
             let out = run_level(&mut problem, state, &level_settings)?;
             iterations[level] = out.iterations;
             state = out.state;

@@ -24,6 +24,26 @@ pub(super) struct RefLevel {
     pub(super) k: [f32; 4],
 }
 
+impl RefLevel {
+    /// An empty level with intrinsics `k`.
+    pub(super) fn with_intrinsics(k: [f32; 4]) -> Self {
+        Self {
+            k,
+            ..Self::default()
+        }
+    }
+
+    /// Adds the pixel `(u, v)` of this level with depth `z` and grey level `value`, back-projected
+    /// to `P = z K^-1 (u, v, 1)`.
+    pub(super) fn push(&mut self, u: f32, v: f32, z: f32, value: f32) {
+        let [fx, fy, cx, cy] = self.k;
+        self.x.push((u - cx) / fx * z);
+        self.y.push((v - cy) / fy * z);
+        self.z.push(z);
+        self.value.push(value);
+    }
+}
+
 /// Intrinsics `(fx, fy, cx, cy) / 2^level` of pyramid level `level` (level-`l` pixel `x` sits at
 /// level-0 pixel `2^l x`).
 pub(super) fn level_intrinsics(p: &Pinhole, level: usize) -> [f32; 4] {
@@ -59,7 +79,7 @@ pub(super) fn select_level(
         .collect::<Vec<_>>()
         .into_par_iter()
         .map(|cy| {
-            let mut out = RefLevel::default();
+            let mut out = RefLevel::with_intrinsics(k);
             // Per cell of the band: (g2, x, y, z) of the best pixel so far.
             let cells = (w.saturating_sub(2)).div_ceil(cell);
             let mut best: Vec<Option<(f32, usize, usize, f32)>> = vec![None; cells];
@@ -90,19 +110,13 @@ pub(super) fn select_level(
             for (_, x, y, z) in best.into_iter().flatten() {
                 let value = img.at(x, y);
                 if value.is_finite() {
-                    out.x.push((x as f32 - k[2]) / k[0] * z);
-                    out.y.push((y as f32 - k[3]) / k[1] * z);
-                    out.z.push(z);
-                    out.value.push(value);
+                    out.push(x as f32, y as f32, z, value);
                 }
             }
             out
         })
         .collect();
-    let mut out = RefLevel {
-        k,
-        ..RefLevel::default()
-    };
+    let mut out = RefLevel::with_intrinsics(k);
     for band in bands {
         out.x.extend(band.x);
         out.y.extend(band.y);

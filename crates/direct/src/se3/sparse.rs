@@ -102,20 +102,13 @@ impl Se3Reference {
             .chain(&coarse)
             .enumerate()
             .map(|(l, img)| {
-                let k = level_intrinsics(&pinhole, l);
+                let mut level = RefLevel::with_intrinsics(level_intrinsics(&pinhole, l));
                 let s = 0.5f32.powi(l as i32);
-                let mut level = RefLevel {
-                    k,
-                    ..RefLevel::default()
-                };
                 for &(p, z) in &usable {
-                    let Some(value) = img.sample(p.x * s, p.y * s).filter(|v| v.is_finite()) else {
-                        continue;
-                    };
-                    level.x.push((p.x * s - k[2]) / k[0] * z);
-                    level.y.push((p.y * s - k[3]) / k[1] * z);
-                    level.z.push(z);
-                    level.value.push(value);
+                    let (u, v) = (p.x * s, p.y * s);
+                    if let Some(value) = img.sample(u, v).filter(|v| v.is_finite()) {
+                        level.push(u, v, z, value);
+                    }
                 }
                 level
             })
