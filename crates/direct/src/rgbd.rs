@@ -6,6 +6,7 @@
 //! does not change under undistortion, so the remapped depth stays metric. Outside the input
 //! image the grey level is NaN and the depth 0 (both invalid).
 
+use std::borrow::Cow;
 use std::sync::Arc;
 
 use nalgebra::Vector2;
@@ -125,6 +126,17 @@ impl Undistorter {
     }
 }
 
+/// `img` in the pinhole geometry: remapped by `undistorter`, or borrowed as it is without one.
+pub(crate) fn pinhole_image<'a>(
+    undistorter: Option<&Undistorter>,
+    img: &'a Plane,
+) -> Result<Cow<'a, Plane>, DirectError> {
+    match undistorter {
+        Some(u) => Ok(Cow::Owned(u.undistort_image(img)?)),
+        None => Ok(Cow::Borrowed(img)),
+    }
+}
+
 /// A reference frame for SE(3) alignment: grey image and depth in a pinhole camera.
 #[derive(Debug, Clone)]
 pub struct RgbdFrame {
@@ -187,9 +199,6 @@ impl RgbdFrame {
     /// `img` (a current image from the same camera) brought to the pinhole geometry.
     pub fn prepare_current(&self, img: &Plane) -> Result<Plane, DirectError> {
         self.image.check_same_size(img)?;
-        match &self.undistorter {
-            Some(u) => u.undistort_image(img),
-            None => Ok(img.clone()),
-        }
+        Ok(pinhole_image(self.undistorter.as_deref(), img)?.into_owned())
     }
 }

@@ -25,7 +25,7 @@ use vofront_robust::{Convergence, Loss};
 use crate::error::DirectError;
 use crate::lm::{covariance, run_level, LevelProblem, LmSettings, SERIAL_MAX};
 use crate::plane::{Bilinear, Plane};
-use crate::rgbd::{RgbdFrame, Undistorter};
+use crate::rgbd::{pinhole_image, RgbdFrame, Undistorter};
 
 mod level;
 mod select;
@@ -212,14 +212,7 @@ impl Se3Reference {
                 found: current.size(),
             });
         }
-        let undistorted;
-        let current = match &self.undistorter {
-            Some(u) => {
-                undistorted = u.undistort_image(current)?;
-                &undistorted
-            }
-            None => current,
-        };
+        let current = &*pinhole_image(self.undistorter.as_deref(), current)?;
         let coarse = current.coarser_levels(self.levels.len(), MIN_LEVEL_SIDE);
         let mut state = Se3State {
             pose: vofront_geometry::lie::normalized(prior),

@@ -15,7 +15,7 @@ use super::select::{level_intrinsics, RefLevel};
 use super::{Se3Config, Se3Reference, MIN_LEVEL_SIDE};
 use crate::error::DirectError;
 use crate::plane::Plane;
-use crate::rgbd::{Undistorter, MIN_RGBD_SIDE};
+use crate::rgbd::{pinhole_image, Undistorter, MIN_RGBD_SIDE};
 
 /// A reference pixel with its inverse depth.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -80,14 +80,7 @@ impl Se3Reference {
         }
         image.check_min_size(MIN_RGBD_SIDE)?;
         pinhole.validate()?;
-        let undistorted;
-        let base = match &undistorter {
-            Some(u) => {
-                undistorted = u.undistort_image(image)?;
-                &undistorted
-            }
-            None => image,
-        };
+        let base = &*pinhole_image(undistorter.as_deref(), image)?;
         let usable: Vec<(Vector2<f32>, f32)> = points
             .iter()
             .filter(|p| p.pixel.iter().all(|v| v.is_finite()))
