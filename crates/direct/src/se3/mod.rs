@@ -341,7 +341,8 @@ pub fn photometric_residual_map(
     a: f64,
     b: f64,
 ) -> Result<Plane, DirectError> {
-    let current = reference.prepare_current(current)?;
+    reference.image.check_same_size(current)?;
+    let current = pinhole_image(reference.undistorter.as_deref(), current)?;
     let (w, h) = current.size();
     let k = reference.pinhole;
     let rot = pose
