@@ -56,7 +56,7 @@ pub struct DirectTracker {
 
 fn median_depth(depth: &Plane) -> f64 {
     let mut valid: Vec<f64> = depth
-        .data
+        .data()
         .iter()
         .filter(|z| **z > 0.0 && z.is_finite())
         .map(|&z| z as f64)
@@ -89,7 +89,7 @@ impl DirectTracker {
         Ok(Keyframe {
             reference,
             t_wc,
-            median_depth: median_depth(&rgbd.depth),
+            median_depth: median_depth(rgbd.depth()),
             selected,
             first_residual: None,
         })

@@ -84,8 +84,8 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     } else {
         Some(Arc::new(Undistorter::new(
             &camera,
-            img_prev.width,
-            img_prev.height,
+            img_prev.width(),
+            img_prev.height(),
         )?))
     };
     let mut times = Vec::new();

@@ -74,7 +74,7 @@ fn shift_like_opencv(img: &Plane, dx: f64, dy: f64) -> Plane {
             };
             let top = px(x0, y0) * (1.0 - fx) + px(x0 + 1.0, y0) * fx;
             let bottom = px(x0, y0 + 1.0) * (1.0 - fx) + px(x0 + 1.0, y0 + 1.0) * fx;
-            out.data[y * w + x] = top * (1.0 - fy) + bottom * fy;
+            out.data_mut()[y * w + x] = top * (1.0 - fy) + bottom * fy;
         }
     }
     out

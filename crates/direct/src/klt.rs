@@ -154,7 +154,7 @@ pub fn good_features_to_track(
 fn min_eigenvalue_map(img: &Plane) -> Vec<f32> {
     let (w, h) = img.size();
     let g = img.gradients();
-    let (gx, gy) = (&g.gx.data, &g.gy.data);
+    let (gx, gy) = (g.gx.data(), g.gy.data());
     let box3 = |src: Vec<f32>| -> Vec<f32> {
         let mut horiz = vec![0f32; w * h];
         for (s, d) in src.chunks_exact(w).zip(horiz.chunks_exact_mut(w)) {
@@ -254,11 +254,7 @@ fn padded(img: &Plane, pad: usize) -> Plane {
         data.extend_from_slice(row);
         data.extend(std::iter::repeat(row[w - 1]).take(pad));
     }
-    Plane {
-        width: pw,
-        height: h + 2 * pad,
-        data,
-    }
+    Plane::new(pw, h + 2 * pad, data).expect("one padded row of pw values per padded row")
 }
 
 /// Per-thread buffers of one window.

@@ -13,20 +13,25 @@ use image::{GrayImage, ImageBuffer, Luma};
 use crate::error::DirectError;
 
 /// A row-major `width x height` image of `f32` values (grey levels 0..255 for 8-bit content).
+///
+/// Invariant: `data().len() == width() * height()`; the fields are private so that every
+/// plane is built by a constructor that checks it, and values are changed in place through
+/// [`Plane::data_mut`], which cannot change the length.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Plane {
     /// Columns.
-    pub width: usize,
+    width: usize,
     /// Rows.
-    pub height: usize,
+    height: usize,
     /// `data[y * width + x]`, `width * height` values.
-    pub data: Vec<f32>,
+    data: Vec<f32>,
 }
 
 impl Plane {
-    /// A plane from a row-major buffer; [`DirectError::BadBuffer`] when `data.len() != w * h`.
+    /// A plane from a row-major buffer; [`DirectError::BadBuffer`] when `data.len() != w * h`
+    /// (or when `w * h` overflows).
     pub fn new(width: usize, height: usize, data: Vec<f32>) -> Result<Self, DirectError> {
-        if data.len() != width * height {
+        if width.checked_mul(height) != Some(data.len()) {
             return Err(DirectError::BadBuffer {
                 len: data.len(),
                 width,
@@ -41,11 +46,17 @@ impl Plane {
     }
 
     /// A plane filled with `value`.
+    ///
+    /// Panics when `width * height` overflows `usize` (like `vec![value; n]` beyond memory);
+    /// sizes that come from input should go through [`Plane::new`].
     pub fn filled(width: usize, height: usize, value: f32) -> Self {
+        let len = width
+            .checked_mul(height)
+            .expect("Plane::filled: width * height overflows usize");
         Self {
             width,
             height,
-            data: vec![value; width * height],
+            data: vec![value; len],
         }
     }
 
@@ -67,9 +78,39 @@ impl Plane {
         }
     }
 
+    /// Columns.
+    #[inline]
+    pub fn width(&self) -> usize {
+        self.width
+    }
+
+    /// Rows.
+    #[inline]
+    pub fn height(&self) -> usize {
+        self.height
+    }
+
     /// `(width, height)`.
+    #[inline]
     pub fn size(&self) -> (usize, usize) {
         (self.width, self.height)
+    }
+
+    /// The row-major values, `data()[y * width + x]`, `width * height` of them.
+    #[inline]
+    pub fn data(&self) -> &[f32] {
+        &self.data
+    }
+
+    /// The values, writable in place (the length, hence the invariant, cannot change).
+    #[inline]
+    pub fn data_mut(&mut self) -> &mut [f32] {
+        &mut self.data
+    }
+
+    /// The row-major buffer, consuming the plane.
+    pub fn into_data(self) -> Vec<f32> {
+        self.data
     }
 
     /// Row `y` as a slice of `width` values.

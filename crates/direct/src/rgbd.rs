@@ -26,9 +26,9 @@ const REMAP_BLOCK: usize = 32 * 1024;
 #[derive(Debug, Clone, PartialEq)]
 pub struct Undistorter {
     /// Image width, pixels.
-    pub width: usize,
+    width: usize,
     /// Image height, pixels.
-    pub height: usize,
+    height: usize,
     /// Bilinear taps of every output pixel: top-left index (`u32::MAX` outside) and fractions.
     taps: Vec<(u32, f32, f32)>,
 }
@@ -68,6 +68,11 @@ impl Undistorter {
         })
     }
 
+    /// `(width, height)` of the images this remap applies to, pixels.
+    pub fn size(&self) -> (usize, usize) {
+        (self.width, self.height)
+    }
+
     /// `value(tap)` of every output pixel, in parallel blocks of rows.
     fn remap<F>(&self, value: F) -> Vec<f32>
     where
@@ -98,7 +103,7 @@ impl Undistorter {
     /// The pinhole image of `img` (bilinear, NaN where the source is outside).
     pub fn undistort_image(&self, img: &Plane) -> Result<Plane, DirectError> {
         self.check(img)?;
-        let (w, d) = (img.width, &img.data);
+        let (w, d) = (img.width(), img.data());
         let data = self.remap(|&(index, fx, fy)| {
             if index == u32::MAX {
                 return f32::NAN;
@@ -114,7 +119,7 @@ impl Undistorter {
     /// The pinhole depth map of `depth` (nearest neighbour, 0 where the source is outside).
     pub fn undistort_depth(&self, depth: &Plane) -> Result<Plane, DirectError> {
         self.check(depth)?;
-        let (w, d) = (depth.width, &depth.data);
+        let (w, d) = (depth.width(), depth.data());
         let data = self.remap(|&(index, fx, fy)| {
             if index == u32::MAX {
                 return 0.0;
@@ -138,17 +143,21 @@ pub(crate) fn pinhole_image<'a>(
 }
 
 /// A reference frame for SE(3) alignment: grey image and depth in a pinhole camera.
+///
+/// Invariants (checked by [`RgbdFrame::new`] / [`RgbdFrame::with_undistorter`], hence private
+/// fields): image and depth have the same size, both sides at least [`MIN_RGBD_SIDE`], valid
+/// intrinsics, at least one valid depth, and the remap (if any) is for that size.
 #[derive(Debug, Clone)]
 pub struct RgbdFrame {
     /// Grey levels, undistorted (NaN where unknown).
-    pub image: Plane,
+    image: Plane,
     /// Depth `Z` in metres along the optical axis, undistorted; `0` or NaN = unknown.
-    pub depth: Plane,
+    depth: Plane,
     /// Intrinsics of `image` and `depth`.
-    pub pinhole: Pinhole,
+    pinhole: Pinhole,
     /// The remap applied to the inputs, reused for the current images (`None` without
     /// distortion).
-    pub undistorter: Option<Arc<Undistorter>>,
+    undistorter: Option<Arc<Undistorter>>,
 }
 
 impl RgbdFrame {
@@ -164,8 +173,8 @@ impl RgbdFrame {
         } else {
             Some(Arc::new(Undistorter::new(
                 camera,
-                image.width,
-                image.height,
+                image.width(),
+                image.height(),
             )?))
         };
         Self::with_undistorter(image, depth, camera.pinhole, undistorter)
@@ -185,7 +194,7 @@ impl RgbdFrame {
             Some(u) => (u.undistort_image(&image)?, u.undistort_depth(&depth)?),
             None => (image, depth),
         };
-        if !depth.data.iter().any(|&z| z > 0.0 && z.is_finite()) {
+        if !depth.data().iter().any(|&z| z > 0.0 && z.is_finite()) {
             return Err(DirectError::NoValidDepth);
         }
         Ok(Self {
@@ -194,6 +203,27 @@ impl RgbdFrame {
             pinhole,
             undistorter,
         })
+    }
+
+    /// Grey levels, undistorted (NaN where unknown).
+    pub fn image(&self) -> &Plane {
+        &self.image
+    }
+
+    /// Depth `Z` in metres along the optical axis, undistorted; `0` or NaN = unknown.
+    pub fn depth(&self) -> &Plane {
+        &self.depth
+    }
+
+    /// Intrinsics of [`RgbdFrame::image`] and [`RgbdFrame::depth`].
+    pub fn pinhole(&self) -> &Pinhole {
+        &self.pinhole
+    }
+
+    /// The remap applied to the inputs, reused for the current images (`None` without
+    /// distortion).
+    pub fn undistorter(&self) -> Option<&Arc<Undistorter>> {
+        self.undistorter.as_ref()
     }
 
     /// `img` (a current image from the same camera) brought to the pinhole geometry.

@@ -90,7 +90,7 @@ fn flat_windows_and_bad_inputs_are_reported() {
     let mut flat = i1.clone();
     for y in 100..180 {
         for x in 100..200 {
-            flat.data[y * W as usize + x] = 90.0;
+            flat.data_mut()[y * W as usize + x] = 90.0;
         }
     }
     let tracks = track_klt(

@@ -80,12 +80,12 @@ fn zero_threshold_without_budget_uses_every_interior_pixel() {
 fn noisy_shift_is_recovered_and_covariance_is_consistent() {
     let (i1, i2) = shifted_pair(5, -3.3, 4.45);
     let n1 = Plane::from_gray_f32(&add_gaussian_noise(
-        &image::ImageBuffer::from_raw(W, H, i1.data.clone()).unwrap(),
+        &image::ImageBuffer::from_raw(W, H, i1.data().to_vec()).unwrap(),
         2.0,
         1,
     ));
     let n2 = Plane::from_gray_f32(&add_gaussian_noise(
-        &image::ImageBuffer::from_raw(W, H, i2.data.clone()).unwrap(),
+        &image::ImageBuffer::from_raw(W, H, i2.data().to_vec()).unwrap(),
         2.0,
         2,
     ));

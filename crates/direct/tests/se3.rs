@@ -128,7 +128,12 @@ fn noiseless_motion_is_recovered_with_covariance_and_full_inliers() {
         0.0,
     )
     .unwrap();
-    let mut valid: Vec<f32> = map.data.iter().copied().filter(|v| v.is_finite()).collect();
+    let mut valid: Vec<f32> = map
+        .data()
+        .iter()
+        .copied()
+        .filter(|v| v.is_finite())
+        .collect();
     valid.sort_by(f32::total_cmp);
     let median = valid[valid.len() / 2];
     assert!(
@@ -145,7 +150,7 @@ fn noiseless_motion_is_recovered_with_covariance_and_full_inliers() {
     )
     .unwrap();
     let mut bad: Vec<f32> = wrong
-        .data
+        .data()
         .iter()
         .copied()
         .filter(|v| v.is_finite())
@@ -254,7 +259,7 @@ fn occluding_patches_are_rejected_by_the_robust_loss() {
 fn missing_depth_pixels_are_skipped() {
     let p = pair(half_camera(default_camera()));
     let mut depth = Plane::from_gray_f32(&p.first.depth);
-    for (i, z) in depth.data.iter_mut().enumerate() {
+    for (i, z) in depth.data_mut().iter_mut().enumerate() {
         if i % 7 == 0 {
             *z = f32::NAN;
         } else if i % 5 == 0 {
@@ -375,14 +380,14 @@ fn sparse_inverse_depth_reference_is_accurate() {
     let image = Plane::from_gray_f32(&p.first.image);
     let depth = Plane::from_gray_f32(&p.first.depth);
     let g = image.gradients();
-    let mut points: Vec<InverseDepthPoint> = (0..image.data.len())
+    let mut points: Vec<InverseDepthPoint> = (0..image.data().len())
         .filter(|&i| {
-            let (gx, gy) = (g.gx.data[i], g.gy.data[i]);
-            i % 3 == 0 && gx * gx + gy * gy > 100.0 && depth.data[i] > 0.0
+            let (gx, gy) = (g.gx.data()[i], g.gy.data()[i]);
+            i % 3 == 0 && gx * gx + gy * gy > 100.0 && depth.data()[i] > 0.0
         })
         .map(|i| InverseDepthPoint {
-            pixel: Vector2::new((i % image.width) as f32, (i / image.width) as f32),
-            inverse_depth: 1.0 / depth.data[i],
+            pixel: Vector2::new((i % image.width()) as f32, (i / image.width()) as f32),
+            inverse_depth: 1.0 / depth.data()[i],
         })
         .collect();
     let usable = points.len();

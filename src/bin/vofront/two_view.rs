@@ -314,7 +314,7 @@ pub fn write_pictures(dir: &Path, inputs: &Inputs, outcome: &Outcome) -> Result<
             &draw::heat(
                 w as u32,
                 h as u32,
-                &map.data,
+                map.data(),
                 (4.0 * s.rmse as f32).max(8.0),
             ),
             dir,

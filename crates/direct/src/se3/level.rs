@@ -216,7 +216,7 @@ mod tests {
             (1.0 + t * (hi_u - 1.0), 1.0 + (1.0 - t * t) * (hi_v - 1.0))
         }));
         for (u, v) in points {
-            let [value, gx, gy] = sample_with_gradient(&img.data, w, h, u, v);
+            let [value, gx, gy] = sample_with_gradient(img.data(), w, h, u, v);
             let expected = [
                 img.sample(u, v).expect("inside"),
                 g.gx.sample(u, v).expect("inside"),

@@ -154,19 +154,19 @@ impl Se3Reference {
                 "levels, pixel_budget and max_iterations must be positive",
             ));
         }
-        let coarse = frame.image.coarser_levels(cfg.levels, MIN_LEVEL_SIDE);
-        let levels: Vec<RefLevel> = std::iter::once(&frame.image)
+        let coarse = frame.image().coarser_levels(cfg.levels, MIN_LEVEL_SIDE);
+        let levels: Vec<RefLevel> = std::iter::once(frame.image())
             .chain(&coarse)
             .enumerate()
             .map(|(l, img)| {
-                let k = level_intrinsics(&frame.pinhole, l);
-                select_level(img, &frame.depth, 1 << l, k, cfg)
+                let k = level_intrinsics(frame.pinhole(), l);
+                select_level(img, frame.depth(), 1 << l, k, cfg)
             })
             .collect();
         if levels[0].x.is_empty() {
             let any_depth = frame
-                .depth
-                .data
+                .depth()
+                .data()
                 .iter()
                 .any(|&z| z >= cfg.min_depth && z <= cfg.max_depth);
             return Err(if any_depth {
@@ -180,8 +180,8 @@ impl Se3Reference {
         }
         Ok(Self {
             levels,
-            size: frame.image.size(),
-            undistorter: frame.undistorter.clone(),
+            size: frame.image().size(),
+            undistorter: frame.undistorter().cloned(),
         })
     }
 
@@ -247,7 +247,7 @@ impl Se3Reference {
             let mut problem = Se3Level {
                 reference,
                 size: img.size(),
-                image: &img.data,
+                image: img.data(),
                 residuals: Vec::new(),
                 jacobians: Vec::new(),
                 saved: (Vec::new(), Vec::new()),
@@ -341,10 +341,10 @@ pub fn photometric_residual_map(
     a: f64,
     b: f64,
 ) -> Result<Plane, DirectError> {
-    reference.image.check_same_size(current)?;
-    let current = pinhole_image(reference.undistorter.as_deref(), current)?;
+    reference.image().check_same_size(current)?;
+    let current = pinhole_image(reference.undistorter().map(AsRef::as_ref), current)?;
     let (w, h) = current.size();
-    let k = reference.pinhole;
+    let k = reference.pinhole();
     let rot = pose
         .rotation
         .to_rotation_matrix()
@@ -353,24 +353,29 @@ pub fn photometric_residual_map(
     let t = pose.translation.vector.cast::<f32>();
     let (fx, fy, cx, cy) = (k.fx as f32, k.fy as f32, k.cx as f32, k.cy as f32);
     let mut out = Plane::filled(w, h, f32::NAN);
-    out.data.par_chunks_mut(w).enumerate().for_each(|(y, row)| {
-        for (x, o) in row.iter_mut().enumerate() {
-            let z = reference.depth.at(x, y);
-            if !(z > 0.0 && z.is_finite()) {
-                continue;
+    out.data_mut()
+        .par_chunks_mut(w)
+        .enumerate()
+        .for_each(|(y, row)| {
+            for (x, o) in row.iter_mut().enumerate() {
+                let z = reference.depth().at(x, y);
+                if !(z > 0.0 && z.is_finite()) {
+                    continue;
+                }
+                let pr = Vector3::new((x as f32 - cx) / fx * z, (y as f32 - cy) / fy * z, z);
+                let p = rot * pr + t;
+                if p.z <= 1e-3 {
+                    continue;
+                }
+                let u = fx * p.x / p.z + cx;
+                let v = fy * p.y / p.z + cy;
+                if let Some(tap) = Bilinear::new(u, v, w, h) {
+                    let r = tap.apply(current.data())
+                        - a as f32 * reference.image().at(x, y)
+                        - b as f32;
+                    *o = r.abs();
+                }
             }
-            let pr = Vector3::new((x as f32 - cx) / fx * z, (y as f32 - cy) / fy * z, z);
-            let p = rot * pr + t;
-            if p.z <= 1e-3 {
-                continue;
-            }
-            let u = fx * p.x / p.z + cx;
-            let v = fy * p.y / p.z + cy;
-            if let Some(tap) = Bilinear::new(u, v, w, h) {
-                let r = tap.apply(&current.data) - a as f32 * reference.image.at(x, y) - b as f32;
-                *o = r.abs();
-            }
-        }
-    });
+        });
     Ok(out)
 }

@@ -71,7 +71,7 @@ pub(super) fn select_level(
         .max(1.0) as usize;
     let t2 = cfg.gradient_threshold * cfg.gradient_threshold;
     let depth_at = |x: usize, y: usize| {
-        let z = depth0.data[(y * step) * depth0.width + x * step];
+        let z = depth0.data()[(y * step) * depth0.width() + x * step];
         (z >= cfg.min_depth && z <= cfg.max_depth).then_some(z)
     };
     let bands: Vec<RefLevel> = (1..h.saturating_sub(1))

@@ -235,7 +235,7 @@ impl<const M: usize> LevelProblem<M> for Level2d<'_> {
         let (a, b) = (s.a as f32, s.b as f32);
         self.gain = a;
         let (w, hgt) = self.target.size();
-        let img = &self.target.data;
+        let img = self.target.data();
         let r = self.reference;
         let n = r.len();
         let taps = WarpTaps::new(&h, self.kind == WarpKind::Translation, w, hgt);
@@ -267,8 +267,8 @@ impl<const M: usize> LevelProblem<M> for Level2d<'_> {
                     for (k, i) in (start..start + out.len()).enumerate() {
                         out[k] = match warp(i) {
                             Some(t) => {
-                                ogx[k] = t.apply(&grad.gx.data);
-                                ogy[k] = t.apply(&grad.gy.data);
+                                ogx[k] = t.apply(grad.gx.data());
+                                ogy[k] = t.apply(grad.gy.data());
                                 t.apply(img) - a * r.value[i] - b
                             }
                             None => f32::NAN,
@@ -412,7 +412,12 @@ pub(crate) fn align_2d<const M: usize>(
     if initial.iter().any(|v| !v.is_finite()) || initial[(2, 2)].abs() < 1e-12 {
         return Err(DirectError::NotFinite);
     }
-    if img1.data.iter().chain(&img2.data).any(|v| !v.is_finite()) {
+    if img1
+        .data()
+        .iter()
+        .chain(img2.data())
+        .any(|v| !v.is_finite())
+    {
         return Err(DirectError::NotFinite);
     }
     let (base1, base2) = if cfg.presmooth {
@@ -464,7 +469,7 @@ pub(crate) fn align_2d<const M: usize>(
             sampled_gy: Vec::new(),
             gain: 1.0,
         };
-        let radius = p1.width.max(p1.height) as f64 / 2.0;
+        let radius = p1.width().max(p1.height()) as f64 / 2.0;
         let mut step_weights = SVector::<f64, M>::repeat(1.0);
         if kind != WarpKind::Translation {
             for i in [0, 1, 3, 4] {
@@ -514,7 +519,7 @@ pub(crate) fn align_2d<const M: usize>(
         b: state.b,
         iterations,
         rmse,
-        used_fraction: out.valid as f64 / (img1.width * img1.height) as f64,
+        used_fraction: out.valid as f64 / (img1.width() * img1.height()) as f64,
         covariance: DMatrix::from_fn(k, k, |r, c| cov[(r, c)]),
         converged: out.reason != Convergence::MaxIterations,
     })

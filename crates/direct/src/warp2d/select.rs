@@ -51,7 +51,7 @@ impl RefPixels {
         }
         for (i, _) in g2.iter().enumerate().filter(|(_, &g)| g >= t2) {
             let (x, y) = (i % w, i / w);
-            let d = &img.data;
+            let d = img.data();
             out.x.push(x as f32);
             out.y.push(y as f32);
             out.value.push(d[i]);

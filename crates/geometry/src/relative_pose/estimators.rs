@@ -13,22 +13,49 @@ use vofront_robust::Loss;
 
 /// Normalized coordinates of the correspondences, one array per coordinate; built with
 /// [`Correspondences::push`].
+///
+/// Invariant: the five arrays have the same length (the fields are private so that
+/// [`Correspondences::push`] is the only way in and the packed copy stays in step).
 #[derive(Debug, Clone, Default)]
 pub struct Correspondences {
     /// `x` of image 1.
-    pub u1: Vec<f64>,
+    u1: Vec<f64>,
     /// `y` of image 1.
-    pub v1: Vec<f64>,
+    v1: Vec<f64>,
     /// `x` of image 2.
-    pub u2: Vec<f64>,
+    u2: Vec<f64>,
     /// `y` of image 2.
-    pub v2: Vec<f64>,
+    v2: Vec<f64>,
     /// The four coordinates in `f32`, interleaved per correspondence `[u1, v1, u2, v2]`, for
     /// the vectorised scoring loop (kept in step with the other arrays by [`Self::push`]).
     packed: Vec<[f32; 4]>,
 }
 
 impl Correspondences {
+    /// `x` of image 1, one per correspondence.
+    #[inline]
+    pub fn u1(&self) -> &[f64] {
+        &self.u1
+    }
+
+    /// `y` of image 1, one per correspondence.
+    #[inline]
+    pub fn v1(&self) -> &[f64] {
+        &self.v1
+    }
+
+    /// `x` of image 2, one per correspondence.
+    #[inline]
+    pub fn u2(&self) -> &[f64] {
+        &self.u2
+    }
+
+    /// `y` of image 2, one per correspondence.
+    #[inline]
+    pub fn v2(&self) -> &[f64] {
+        &self.v2
+    }
+
     /// Number of correspondences.
     pub fn len(&self) -> usize {
         self.u1.len()

@@ -196,7 +196,7 @@ fn prepare(
             .map(|(a, b)| (a - u0).abs().max((b - v0).abs()))
             .fold(0.0, f64::max)
     };
-    if spread(&data.u1, &data.v1) < 1e-12 || spread(&data.u2, &data.v2) < 1e-12 {
+    if spread(data.u1(), data.v1()) < 1e-12 || spread(data.u2(), data.v2()) < 1e-12 {
         return Err(GeometryError::Degenerate("all points are identical".into()));
     }
     Ok((data, index))
