@@ -153,7 +153,7 @@ fn feature_rgbd_tracker_follows_the_room_sequence() {
         .skip(1);
     assert!(scored
         .clone()
-        .all(|e| e.quality.inliers >= 25 && e.quality.covariance_trace > 0.0));
+        .all(|e| e.quality.inliers >= 25 && e.quality.covariance_trace.is_some_and(|t| t > 0.0)));
 }
 
 #[test]

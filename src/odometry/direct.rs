@@ -151,7 +151,7 @@ impl Tracker for DirectTracker {
             inlier_ratio: fit.inlier_ratio,
             rmse: fit.rmse,
             iterations: fit.iterations.iter().sum(),
-            covariance_trace: fit.covariance.trace(),
+            covariance_trace: fit.covariance.map(|c| c.trace()),
             keyframe,
             ms: ms_since(start),
         };

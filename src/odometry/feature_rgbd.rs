@@ -189,7 +189,7 @@ impl Tracker for FeatureRgbdTracker {
             inlier_ratio: fit.inlier_count as f64 / matches.len().max(1) as f64,
             rmse: fit.rmse_px,
             iterations: fit.iterations,
-            covariance_trace: fit.covariance.trace(),
+            covariance_trace: fit.covariance.map(|c| c.trace()),
             keyframe: false,
             ms: 0.0,
         };

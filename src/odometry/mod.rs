@@ -62,8 +62,9 @@ pub struct FrameQuality {
     pub rmse: f64,
     /// Optimisation iterations (all levels).
     pub iterations: usize,
-    /// Trace of the 6x6 pose covariance (m^2 + rad^2); smaller is more certain.
-    pub covariance_trace: f64,
+    /// Trace of the 6x6 pose covariance (m^2 + rad^2); smaller is more certain. `None` when
+    /// the covariance is unknown (never 0 for "unknown").
+    pub covariance_trace: Option<f64>,
     /// This frame became a keyframe.
     pub keyframe: bool,
     /// Time spent on the frame, milliseconds.

@@ -340,7 +340,7 @@ impl MonoTracker {
             inlier_ratio: fit.inlier_count as f64 / matches.len().max(1) as f64,
             rmse: fit.rmse_px,
             iterations: fit.iterations,
-            covariance_trace: fit.covariance.trace(),
+            covariance_trace: fit.covariance.map(|c| c.trace()),
             keyframe,
             ms: 0.0,
         };

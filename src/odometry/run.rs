@@ -105,7 +105,8 @@ pub fn run(
 
 /// Writes one CSV line per frame:
 /// `index,timestamp,status,keyframe,inliers,inlier_ratio,rmse,iterations,covariance_trace,ms,message`
-/// (status `unreadable` for frames that could not be read).
+/// (status `unreadable` for frames that could not be read; an empty `covariance_trace` when the
+/// covariance is unknown).
 pub fn write_metrics_csv(path: &Path, records: &[FrameRecord]) -> io::Result<()> {
     let mut f = io::BufWriter::new(std::fs::File::create(path)?);
     writeln!(f, "index,timestamp,status,keyframe,inliers,inlier_ratio,rmse,iterations,covariance_trace,ms,message")?;
@@ -116,7 +117,7 @@ pub fn write_metrics_csv(path: &Path, records: &[FrameRecord]) -> io::Result<()>
                 let message = e.message.as_deref().unwrap_or("").replace([',', '\n'], ";");
                 writeln!(
                     f,
-                    "{},{:.6},{},{},{},{:.4},{:.4},{},{:.6e},{:.3},{}",
+                    "{},{:.6},{},{},{},{:.4},{:.4},{},{},{:.3},{}",
                     r.index,
                     r.timestamp,
                     e.status.as_str(),
@@ -125,7 +126,8 @@ pub fn write_metrics_csv(path: &Path, records: &[FrameRecord]) -> io::Result<()>
                     q.inlier_ratio,
                     q.rmse,
                     q.iterations,
-                    q.covariance_trace,
+                    q.covariance_trace
+                        .map_or(String::new(), |t| format!("{t:.6e}")),
                     q.ms,
                     message
                 )?;

@@ -1,19 +1,21 @@
-//! The robust Levenberg-Marquardt loop shared by every direct aligner, one pyramid level at a
-//! time.
+//! The direct aligners' side of the robust Levenberg-Marquardt driver
+//! ([`vofront_robust::levenberg_marquardt`]), one pyramid level at a time.
 //!
 //! A [`LevelProblem`] evaluates residuals `r_i` (NaN for invalid pixels) into its own buffers
-//! and accumulates `H = sum w_i J_i^T J_i`, `g = sum w_i J_i^T r_i` in parallel. Each iteration:
-//! scale `s = 1.4826 median |r_i|` (floored), weights `w_i = psi(r_i/s) / (r_i/s)`, step
-//! `(H + lambda diag H) delta = -g` (with parameters held fixed replaced by identity rows),
-//! acceptance when the mean robust cost `s^2 mean rho(r_i / s)` decreases, `lambda` divided by
-//! 10 on success and multiplied by 10 on failure; a few failures in a row end the level, and so
-//! does a step that is small in metric terms or small against its own uncertainty
-//! (`delta^T H delta / s^2`, the squared step in standard deviations).
+//! and accumulates `H = sum w_i J_i^T J_i`, `g = sum w_i J_i^T r_i` in parallel. Around it,
+//! this module supplies what is specific to images: the scale `s = 1.4826 median |r_i|`
+//! (floored, from a strided subset), re-estimated after every accepted step; the cost, the
+//! mean robust cost `s^2 mean rho(r_i / s)` over the valid residuals; parameters held fixed
+//! (identity rows in `H`); and a step norm with per-parameter weights. The driver starts as
+//! Gauss-Newton (`lambda = 0`, raised to at least 1e-3 by a rejection), and a few rejections
+//! in a row end the level, as does a step that is small in metric terms or small against its
+//! own uncertainty (`delta^T H delta / s^2`, the squared step in standard deviations).
 
-use nalgebra::{SMatrix, SVector};
+use nalgebra::SVector;
 use rayon::prelude::*;
 use vofront_robust::{
-    mad_sigma_about_zero, solve_damped, Convergence, Damping, Loss, NormalEquations, RobustLoss,
+    levenberg_marquardt, mad_sigma_about_zero, Convergence, Damping, LmConfig, LmError, LmProblem,
+    Loss, NormalEquations, RobustLoss,
 };
 
 use crate::error::DirectError;
@@ -28,6 +30,9 @@ pub(crate) const SERIAL_MAX: usize = 4 * CHUNK;
 /// Consecutive rejected steps (each with ten times more damping) that end a level: the
 /// linearisation no longer predicts the cost, which happens at the noise floor of the minimum.
 const MAX_REJECTIONS: usize = 4;
+
+/// A rejected step raises `lambda` to at least this (the level starts as Gauss-Newton).
+const LAMBDA_FLOOR: f64 = 1e-3;
 
 /// At most this many residuals feed the median of the scale estimate (a strided subset).
 const SCALE_SAMPLES: usize = 20_000;
@@ -96,10 +101,9 @@ pub(crate) struct LevelOutcome<S, const M: usize> {
     pub scale: f32,
     /// Mean robust cost at the end.
     pub cost: f64,
-    /// Normal equations at the final state (with fixed parameters replaced by identity rows).
-    pub hessian: SMatrix<f64, M, M>,
-    /// Weighted cost `sum w r^2 / 2` at the final state.
-    pub weighted_cost: f64,
+    /// Normal equations at the final state (with fixed parameters replaced by identity rows);
+    /// [`NormalEquations::covariance`] gives the Gauss-Newton covariance.
+    pub system: NormalEquations<M>,
     /// Valid residuals at the end.
     pub valid: usize,
 }
@@ -153,99 +157,98 @@ pub(crate) fn mean_robust_cost(
     }
 }
 
-/// `H` and `g` with the fixed parameters' rows and columns replaced by the identity and zero.
-fn with_fixed<const M: usize>(
-    ne: &NormalEquations<M>,
-    fixed: &[bool; M],
-) -> (SMatrix<f64, M, M>, SVector<f64, M>) {
-    let mut h = ne.hessian();
-    let mut g = ne.g;
-    for (i, _) in fixed.iter().enumerate().filter(|(_, f)| **f) {
-        h.row_mut(i).fill(0.0);
-        h.column_mut(i).fill(0.0);
-        h[(i, i)] = 1.0;
-        g[i] = 0.0;
-    }
-    (h, g)
+/// A [`LevelProblem`] with the image-specific scale, cost, fixed parameters and step norm.
+struct Robust<'a, P, const M: usize> {
+    problem: &'a mut P,
+    cfg: &'a LmSettings<M>,
+    scale: f32,
 }
 
-/// Runs the robust Levenberg-Marquardt loop from `state`; see the module documentation.
+impl<P: LevelProblem<M>, const M: usize> LmProblem for Robust<'_, P, M> {
+    type State = P::State;
+    type System = NormalEquations<M>;
+
+    fn evaluate(&mut self, state: &P::State) -> usize {
+        self.problem.evaluate(state)
+    }
+
+    fn cost(&self) -> f64 {
+        let residuals = self.problem.residuals();
+        mean_robust_cost(&self.cfg.loss, self.scale, residuals, self.cfg.serial_max)
+    }
+
+    fn update_scale(&mut self) {
+        self.scale = robust_scale(self.problem.residuals(), self.cfg.min_sigma);
+    }
+
+    fn scale(&self) -> f64 {
+        f64::from(self.scale)
+    }
+
+    fn linearize(&mut self) -> NormalEquations<M> {
+        let mut ne = self.problem.normal_equations(&self.cfg.loss, self.scale);
+        for (i, _) in self.cfg.fixed.iter().enumerate().filter(|(_, f)| **f) {
+            ne.fix(i);
+        }
+        ne
+    }
+
+    fn retract(&self, state: &P::State, step: &SVector<f64, M>) -> P::State {
+        self.problem.retract(state, step)
+    }
+
+    fn step_norm(&self, step: &SVector<f64, M>) -> f64 {
+        step.component_mul(&self.cfg.step_weights).norm()
+    }
+
+    fn save(&mut self) {
+        self.problem.save();
+    }
+
+    fn restore(&mut self, state: &P::State) {
+        self.problem.restore(state);
+    }
+}
+
+/// Runs the robust Levenberg-Marquardt driver on one level from `state`; see the module
+/// documentation.
 pub(crate) fn run_level<P: LevelProblem<M>, const M: usize>(
     problem: &mut P,
     state: P::State,
     cfg: &LmSettings<M>,
 ) -> Result<LevelOutcome<P::State, M>, DirectError> {
-    let mut state = state;
-    let mut valid = problem.evaluate(&state);
-    if valid < cfg.min_valid {
-        return Err(DirectError::TooFewValid {
-            valid,
-            required: cfg.min_valid,
-        });
-    }
-    let mut scale = robust_scale(problem.residuals(), cfg.min_sigma);
-    let mut cost = mean_robust_cost(&cfg.loss, scale, problem.residuals(), cfg.serial_max);
-    let mut ne = problem.normal_equations(&cfg.loss, scale);
-    let mut lambda = 0.0;
-    let mut rejections = 0;
-    let mut reason = Convergence::MaxIterations;
-    let mut iterations = 0;
-    while iterations < cfg.max_iterations {
-        iterations += 1;
-        let (h, g) = with_fixed(&ne, &cfg.fixed);
-        let delta = solve_damped(&h, &g, lambda, Damping::Diagonal, cfg.max_condition)?;
-        let sigmas2 = (delta.transpose() * h * delta)[(0, 0)] / f64::from(scale * scale);
-        let small = delta.component_mul(&cfg.step_weights).norm() < cfg.min_step
-            || sigmas2 < cfg.min_step_sigmas * cfg.min_step_sigmas;
-        let candidate = problem.retract(&state, &delta);
-        problem.save();
-        let trial_valid = problem.evaluate(&candidate);
-        let trial_cost = if trial_valid >= cfg.min_valid {
-            mean_robust_cost(&cfg.loss, scale, problem.residuals(), cfg.serial_max)
-        } else {
-            f64::INFINITY
-        };
-        if trial_cost <= cost {
-            let relative = (cost - trial_cost) / cost.max(f64::MIN_POSITIVE);
-            state = candidate;
-            valid = trial_valid;
-            rejections = 0;
-            lambda *= 0.1;
-            scale = robust_scale(problem.residuals(), cfg.min_sigma);
-            cost = mean_robust_cost(&cfg.loss, scale, problem.residuals(), cfg.serial_max);
-            ne = problem.normal_equations(&cfg.loss, scale);
-            if small {
-                reason = Convergence::SmallStep;
-                break;
-            }
-            if relative < cfg.min_relative_decrease {
-                reason = Convergence::SmallCostChange;
-                break;
-            }
-        } else {
-            problem.restore(&state);
-            if small {
-                reason = Convergence::SmallStep;
-                break;
-            }
-            lambda = (lambda * 10.0).max(1e-3);
-            rejections += 1;
-            if rejections >= MAX_REJECTIONS {
-                reason = Convergence::NoDecrease;
-                break;
-            }
-        }
-    }
-    let (hessian, _) = with_fixed(&ne, &cfg.fixed);
+    let lm = LmConfig {
+        max_iterations: cfg.max_iterations,
+        min_step: cfg.min_step,
+        min_step_sigmas: cfg.min_step_sigmas,
+        min_relative_decrease: cfg.min_relative_decrease,
+        initial_lambda: 0.0,
+        lambda_floor: LAMBDA_FLOOR,
+        max_rejections: MAX_REJECTIONS,
+        damping: Damping::Diagonal,
+        max_condition: cfg.max_condition,
+        min_valid: cfg.min_valid,
+    };
+    let mut robust = Robust {
+        problem,
+        cfg,
+        scale: cfg.min_sigma,
+    };
+    let out = levenberg_marquardt(&mut robust, state, &lm).map_err(|e| match e {
+        LmError::TooFewResiduals { rows, required } => DirectError::TooFewValid {
+            valid: rows,
+            required,
+        },
+        LmError::Solve(e) => DirectError::Solve(e),
+    })?;
     Ok(LevelOutcome {
-        state,
-        iterations,
-        reason,
-        scale,
-        cost,
-        hessian,
-        weighted_cost: ne.cost,
-        valid,
+        cost: out.cost(),
+        state: out.state,
+        iterations: out.iterations,
+        reason: out.reason,
+        scale: robust.scale,
+        system: out.system,
+        valid: out.valid,
     })
 }
 
@@ -283,17 +286,4 @@ where
         .into_par_iter()
         .map(chunk)
         .reduce(NormalEquations::new, |a, b| a.merge(&b))
-}
-
-/// Covariance `sigma^2 H^-1` with `sigma^2 = 2 cost_w / (n - M)`; zero matrix when singular.
-pub(crate) fn covariance<const M: usize>(
-    hessian: &SMatrix<f64, M, M>,
-    weighted_cost: f64,
-    valid: usize,
-) -> SMatrix<f64, M, M> {
-    let dof = valid.saturating_sub(M).max(1) as f64;
-    hessian
-        .try_inverse()
-        .map(|inv| inv * (2.0 * weighted_cost / dof))
-        .unwrap_or_else(SMatrix::zeros)
 }

@@ -75,8 +75,9 @@ pub struct TranslationResult {
     pub rmse: f64,
     /// Fraction of the image's pixels that gave a valid residual at full resolution.
     pub used_fraction: f64,
-    /// Gauss-Newton covariance `sigma^2 H^-1` of `d`, pixels^2.
-    pub covariance: Matrix2<f64>,
+    /// Gauss-Newton covariance `sigma^2 H^-1` of `d`, pixels^2; `None` (unknown) when the
+    /// final normal equations are singular.
+    pub covariance: Option<Matrix2<f64>>,
     /// Brightness gain (1 unless `affine_brightness`).
     pub a: f64,
     /// Brightness offset (0 unless `affine_brightness`).
@@ -133,7 +134,9 @@ pub fn align_translation(
         iterations: out.iterations,
         rmse: out.rmse,
         used_fraction: out.used_fraction,
-        covariance: Matrix2::from_fn(|r, c| out.covariance[(r, c)]),
+        covariance: out
+            .covariance
+            .map(|cov| Matrix2::from_fn(|r, c| cov[(r, c)])),
         a: out.a,
         b: out.b,
         converged: out.converged,

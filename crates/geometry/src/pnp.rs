@@ -4,10 +4,10 @@
 //! `pi(X) = K D(X_xy / X_z)` (the full camera model, distortion included), a Huber loss and
 //! the left perturbation `T <- exp(delta) T`, `delta = (rho, phi)`, through
 //! [`vofront_robust::irls()`]. Its `sigma^2 H^-1` covariance of `delta` (metres, radians) is
-//! returned as a quality score.
+//! returned as a quality score (`None` when unknown: not refined, or the refinement failed).
 
 use nalgebra::{Isometry3, Matrix2x3, Matrix6, Point3, SVector, Vector2, Vector3};
-use vofront_robust::{irls, IrlsConfig, Loss, Problem, Rows, ScaleMode};
+use vofront_robust::{irls, IrlsConfig, LmConfig, Loss, Problem, Rows, ScaleMode};
 
 use crate::camera::Camera;
 use crate::error::GeometryError;
@@ -60,9 +60,9 @@ pub struct PnpResult {
     pub inliers: Vec<bool>,
     /// Number of `true` in `inliers`.
     pub inlier_count: usize,
-    /// Covariance of the left increment `delta = (rho, phi)` at the solution (zero when not
-    /// refined).
-    pub covariance: Matrix6<f64>,
+    /// Covariance of the left increment `delta = (rho, phi)` at the solution; `None`
+    /// (unknown) when not refined or when the refinement's normal equations are singular.
+    pub covariance: Option<Matrix6<f64>>,
     /// Root mean square reprojection error of the inliers, pixels.
     pub rmse_px: f64,
     /// RANSAC iterations.
@@ -123,19 +123,13 @@ impl Problem<6> for Reprojection<'_> {
     type State = Isometry3<f64>;
 
     fn evaluate(&mut self, t: &Isometry3<f64>, rows: &mut Rows<6>) {
-        let k = &self.camera.pinhole;
         for &i in self.indices {
             let x = (t * self.world[i]).coords;
-            if x.z <= 1e-9 {
+            let Some((pixel, jpix)) = project_with_jacobian(self.camera, &x) else {
                 continue;
-            }
-            let iz = 1.0 / x.z;
-            let xn = Vector2::new(x.x * iz, x.y * iz);
-            let d = self.camera.distortion.distort_jacobian(&xn);
-            let dxn = Matrix2x3::new(iz, 0.0, -x.x * iz * iz, 0.0, iz, -x.y * iz * iz);
-            let jpix = nalgebra::Matrix2::new(k.fx, 0.0, 0.0, k.fy) * d * dxn;
+            };
             let j = jpix * point_jacobian(&x);
-            let r = self.camera.normalized_to_pixel(&xn) - self.pixels[i];
+            let r = pixel - self.pixels[i];
             rows.push(j.row(0).transpose(), r.x);
             rows.push(j.row(1).transpose(), r.y);
         }
@@ -144,6 +138,24 @@ impl Problem<6> for Reprojection<'_> {
     fn retract(&self, t: &Isometry3<f64>, delta: &SVector<f64, 6>) -> Isometry3<f64> {
         retract_left(t, delta)
     }
+}
+
+/// Pixel `u = K D(x / z, y / z)` of the camera-frame point `x` (distortion `D` included) and
+/// its Jacobian `du/dx` (2 x 3, pixels per metre); `None` when `z <= 1e-9` (behind the camera).
+pub(crate) fn project_with_jacobian(
+    camera: &Camera,
+    x: &Vector3<f64>,
+) -> Option<(Vector2<f64>, Matrix2x3<f64>)> {
+    if x.z <= 1e-9 {
+        return None;
+    }
+    let k = &camera.pinhole;
+    let iz = 1.0 / x.z;
+    let xn = Vector2::new(x.x * iz, x.y * iz);
+    let d = camera.distortion.distort_jacobian(&xn);
+    let dxn = Matrix2x3::new(iz, 0.0, -x.x * iz * iz, 0.0, iz, -x.y * iz * iz);
+    let jpix = nalgebra::Matrix2::new(k.fx, 0.0, 0.0, k.fy) * d * dxn;
+    Some((camera.normalized_to_pixel(&xn), jpix))
 }
 
 /// Pixel reprojection error of correspondence `i` under `T_cw`, infinite behind the camera.
@@ -258,7 +270,7 @@ pub fn solve_pnp_ransac(
         best: 0,
         need: cfg.min_inliers,
     })?;
-    let mut covariance = Matrix6::zeros();
+    let mut covariance = None;
     let inliers_of = |t: &Isometry3<f64>| -> Vec<usize> {
         (0..world.len())
             .filter(|&k| {
@@ -284,8 +296,10 @@ pub fn solve_pnp_ransac(
         let icfg = IrlsConfig {
             loss: Loss::Huber(1.345),
             scale: ScaleMode::Fixed(cfg.sigma_px),
-            max_iterations: 20,
-            ..IrlsConfig::default()
+            lm: LmConfig {
+                max_iterations: 20,
+                ..LmConfig::default()
+            },
         };
         if let Ok(res) = irls(&mut problem, pose, &icfg) {
             pose = res.state;

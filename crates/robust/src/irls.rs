@@ -1,29 +1,25 @@
-//! Iteratively reweighted Levenberg-Marquardt.
+//! Iteratively reweighted least squares on residual rows, through the one
+//! [`levenberg_marquardt`] driver.
 //!
-//! Minimises the robust cost `C(x) = s^2 sum_i rho(r_i(x) / s)` over a state `x` (a vector or
+//! Minimises the robust cost `C(x) = s^2 mean_i rho(r_i(x) / s)` over a state `x` (a vector or
 //! a manifold element such as a pose) given a [`Problem`] that evaluates residual rows
 //! `r_i(x)` and their Jacobians `J_i = dr_i/d delta` with respect to a local increment
-//! `delta` applied by [`Problem::retract`]. Each iteration:
-//!
-//! 1. weights `w_i = psi(u_i) / u_i` with `u_i = r_i / s` (reweight);
-//! 2. `(H + lambda D) delta = -g` with `H = J^T W J`, `g = J^T W r` (solve, see [`crate::solve`]);
-//! 3. `x' = retract(x, delta)`, accepted when the mean robust cost decreases (update), with
-//!    `lambda` divided by 10 on success and multiplied by 10 on failure;
-//! 4. the scale `s` is re-estimated from the accepted residuals when [`ScaleMode::Mad`] is used;
-//! 5. stop on a small step, a small relative cost change, or the iteration limit.
+//! `delta` applied by [`Problem::retract`]. The rows are weighted by `w_i = psi(u_i) / u_i`,
+//! `u_i = r_i / s`, and accumulated into [`NormalEquations`]; the scale `s` is re-estimated
+//! from the accepted residuals when [`ScaleMode::Mad`] is used. The accept/reject rule, the
+//! damping and the stop reasons are those of [`crate::lm`].
 //!
 //! The mean cost (cost over the number of rows) is compared so that problems whose valid rows
 //! change with `x` (pixels leaving the image) are judged fairly. The covariance returned is the
-//! Gauss-Newton approximation `sigma^2 H^-1` with
-//! `sigma^2 = sum w_i r_i^2 / (n - N)` at the solution.
+//! Gauss-Newton approximation `sigma^2 H^-1` with `sigma^2 = sum w_i r_i^2 / (n - N)` at the
+//! solution, `None` when `H` is singular.
 
 use nalgebra::{SMatrix, SVector};
-use thiserror::Error;
 
+use crate::lm::{levenberg_marquardt, Convergence, LmConfig, LmError, LmProblem};
 use crate::loss::{Loss, RobustLoss};
 use crate::normal::NormalEquations;
 use crate::scale::mad_sigma_about_zero;
-use crate::solve::{scaled_condition, solve_damped, Damping, SolveError};
 
 /// Residual rows and their Jacobians, stored as two parallel arrays.
 #[derive(Debug, Clone, Default)]
@@ -59,7 +55,8 @@ impl<const N: usize> Rows<N> {
     }
 }
 
-/// A nonlinear least-squares problem: residuals and Jacobians at a state, and the update rule.
+/// A nonlinear least-squares problem given as residual rows: residuals and Jacobians at a
+/// state, and the update rule.
 pub trait Problem<const N: usize> {
     /// The estimated quantity (a vector, a pose, a pose plus brightness...).
     type State: Clone;
@@ -89,63 +86,23 @@ pub struct IrlsConfig {
     pub loss: Loss,
     /// Where the scale comes from.
     pub scale: ScaleMode,
-    /// Upper bound on iterations (accepted and rejected steps both count).
-    pub max_iterations: usize,
-    /// Stop when `|delta| <` this.
-    pub min_step: f64,
-    /// Stop when an accepted step lowers the mean cost by less than this fraction.
-    pub min_relative_decrease: f64,
-    /// Starting `lambda`; `0` starts as Gauss-Newton.
-    pub initial_lambda: f64,
-    /// Form of the damping matrix.
-    pub damping: Damping,
-    /// Largest acceptable scaled condition number of `H`.
-    pub max_condition: f64,
+    /// The driver's settings; `min_valid` below `N` is raised to `N`.
+    pub lm: LmConfig,
 }
 
 impl Default for IrlsConfig {
+    /// The default loss, a MAD scale floored at 1e-9 and the default [`LmConfig`].
     fn default() -> Self {
         Self {
             loss: Loss::default(),
             scale: ScaleMode::Mad { min_sigma: 1e-9 },
-            max_iterations: 50,
-            min_step: 1e-10,
-            min_relative_decrease: 1e-10,
-            initial_lambda: 1e-4,
-            damping: Damping::Diagonal,
-            max_condition: 1e10,
+            lm: LmConfig::default(),
         }
     }
 }
 
-/// Why [`irls`] stopped.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub enum Convergence {
-    /// The step fell below `min_step`.
-    SmallStep,
-    /// The relative cost decrease fell below `min_relative_decrease`.
-    SmallCostChange,
-    /// `max_iterations` was reached.
-    MaxIterations,
-    /// No step lowered the cost even with very strong damping: a (local) minimum.
-    NoDecrease,
-}
-
-/// What [`irls`] could not do.
-#[derive(Debug, Clone, Copy, PartialEq, Error)]
-pub enum IrlsError {
-    /// Fewer residual rows than parameters.
-    #[error("{rows} residuals cannot determine {params} parameters")]
-    TooFewResiduals {
-        /// Valid rows at the state.
-        rows: usize,
-        /// Number of parameters.
-        params: usize,
-    },
-    /// The step could not be computed (degenerate or non-finite normal equations).
-    #[error(transparent)]
-    Solve(#[from] SolveError),
-}
+/// What [`irls`] could not do: the driver's errors.
+pub type IrlsError = LmError;
 
 /// The estimate and how it was reached.
 #[derive(Debug, Clone)]
@@ -166,8 +123,9 @@ pub struct IrlsResult<S, const N: usize> {
     pub scale: f64,
     /// `H = J^T W J` at the final state.
     pub hessian: SMatrix<f64, N, N>,
-    /// `sigma^2 H^-1` with `sigma^2 = sum w r^2 / (n - N)`.
-    pub covariance: SMatrix<f64, N, N>,
+    /// `sigma^2 H^-1` with `sigma^2 = sum w r^2 / (n - N)`; `None` (unknown) when `H` is
+    /// singular or worse conditioned than `max_condition`.
+    pub covariance: Option<SMatrix<f64, N, N>>,
 }
 
 /// Robust scale of `residuals` under `mode`.
@@ -195,99 +153,91 @@ fn accumulate<const N: usize>(loss: &Loss, scale: f64, rows: &Rows<N>) -> Normal
     ne
 }
 
+/// A [`Problem`] seen by the driver: its rows at the current state, weighted by `loss`.
+struct RowsProblem<'a, P, const N: usize> {
+    problem: &'a mut P,
+    loss: Loss,
+    mode: ScaleMode,
+    scale: f64,
+    rows: Rows<N>,
+    /// The rows at the accepted state while a trial is evaluated.
+    saved: Rows<N>,
+}
+
+impl<P: Problem<N>, const N: usize> LmProblem for RowsProblem<'_, P, N> {
+    type State = P::State;
+    type System = NormalEquations<N>;
+
+    fn evaluate(&mut self, state: &P::State) -> usize {
+        self.rows.clear();
+        self.problem.evaluate(state, &mut self.rows);
+        self.rows.len()
+    }
+
+    fn cost(&self) -> f64 {
+        mean_cost(&self.loss, self.scale, &self.rows.residuals)
+    }
+
+    fn update_scale(&mut self) {
+        self.scale = estimate_scale(self.mode, &self.rows.residuals);
+    }
+
+    fn scale(&self) -> f64 {
+        self.scale
+    }
+
+    fn linearize(&mut self) -> NormalEquations<N> {
+        accumulate(&self.loss, self.scale, &self.rows)
+    }
+
+    fn retract(&self, state: &P::State, step: &SVector<f64, N>) -> P::State {
+        self.problem.retract(state, step)
+    }
+
+    fn step_norm(&self, step: &SVector<f64, N>) -> f64 {
+        step.norm()
+    }
+
+    fn save(&mut self) {
+        std::mem::swap(&mut self.rows, &mut self.saved);
+    }
+
+    fn restore(&mut self, _state: &P::State) {
+        std::mem::swap(&mut self.rows, &mut self.saved);
+    }
+}
+
 /// Runs iteratively reweighted Levenberg-Marquardt from `x0`; see the module documentation.
 pub fn irls<P: Problem<N>, const N: usize>(
     problem: &mut P,
     x0: P::State,
     cfg: &IrlsConfig,
 ) -> Result<IrlsResult<P::State, N>, IrlsError> {
-    let mut state = x0;
-    let mut rows = Rows::default();
-    let mut trial = Rows::default();
-    problem.evaluate(&state, &mut rows);
-    if rows.len() < N {
-        return Err(IrlsError::TooFewResiduals {
-            rows: rows.len(),
-            params: N,
-        });
-    }
-    let mut scale = estimate_scale(cfg.scale, &rows.residuals);
-    let mut cost = mean_cost(&cfg.loss, scale, &rows.residuals);
-    let mut ne = accumulate(&cfg.loss, scale, &rows);
-    let mut costs = vec![cost];
-    let mut lambda = cfg.initial_lambda;
-    let mut reason = Convergence::MaxIterations;
-    let mut iterations = 0;
-
-    while iterations < cfg.max_iterations {
-        iterations += 1;
-        let delta = solve_damped(&ne.hessian(), &ne.g, lambda, cfg.damping, cfg.max_condition)?;
-        let candidate = problem.retract(&state, &delta);
-        trial.clear();
-        problem.evaluate(&candidate, &mut trial);
-        let trial_cost = if trial.len() >= N {
-            mean_cost(&cfg.loss, scale, &trial.residuals)
-        } else {
-            f64::INFINITY
-        };
-        let small_step = delta.norm() < cfg.min_step;
-        if trial_cost < cost {
-            let relative = (cost - trial_cost) / cost.max(f64::MIN_POSITIVE);
-            state = candidate;
-            std::mem::swap(&mut rows, &mut trial);
-            lambda /= 10.0;
-            scale = estimate_scale(cfg.scale, &rows.residuals);
-            cost = mean_cost(&cfg.loss, scale, &rows.residuals);
-            ne = accumulate(&cfg.loss, scale, &rows);
-            costs.push(cost);
-            if small_step {
-                reason = Convergence::SmallStep;
-                break;
-            }
-            if relative < cfg.min_relative_decrease {
-                reason = Convergence::SmallCostChange;
-                break;
-            }
-        } else {
-            if small_step {
-                reason = Convergence::SmallStep;
-                break;
-            }
-            lambda = (lambda * 10.0).max(1e-4);
-            if lambda > 1e12 {
-                reason = Convergence::NoDecrease;
-                break;
-            }
-        }
-    }
-
-    let hessian = ne.hessian();
-    let condition = scaled_condition(&hessian);
-    let inverse = match hessian.try_inverse() {
-        Some(inv) if condition <= cfg.max_condition => inv,
-        _ => {
-            return Err(IrlsError::Solve(SolveError::Degenerate {
-                condition,
-                limit: cfg.max_condition,
-            }))
-        }
+    let mut rows_problem = RowsProblem {
+        problem,
+        loss: cfg.loss,
+        mode: cfg.scale,
+        scale: 1.0,
+        rows: Rows::default(),
+        saved: Rows::default(),
     };
-    let weights: Vec<f64> = rows
-        .residuals
-        .iter()
-        .map(|r| cfg.loss.weight(r / scale))
-        .collect();
-    let dof = rows.len().saturating_sub(N).max(1) as f64;
-    let sigma2 = 2.0 * ne.cost / dof;
+    let lm = LmConfig {
+        min_valid: cfg.lm.min_valid.max(N),
+        ..cfg.lm
+    };
+    let out = levenberg_marquardt(&mut rows_problem, x0, &lm)?;
+    let (loss, scale) = (cfg.loss, rows_problem.scale);
+    let residuals = std::mem::take(&mut rows_problem.rows.residuals);
+    let weights = residuals.iter().map(|r| loss.weight(r / scale)).collect();
     Ok(IrlsResult {
-        state,
+        state: out.state,
         weights,
-        residuals: rows.residuals,
-        costs,
-        iterations,
-        reason,
+        residuals,
+        costs: out.costs,
+        iterations: out.iterations,
+        reason: out.reason,
         scale,
-        hessian,
-        covariance: inverse * sigma2,
+        hessian: out.system.hessian(),
+        covariance: out.system.covariance(lm.max_condition),
     })
 }

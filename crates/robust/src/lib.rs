@@ -10,7 +10,11 @@
 //! - [`normal`]: accumulation of the normal equations `H = J^T W J`, `g = J^T W r` for a fixed
 //!   parameter count, mergeable so that rayon can reduce partial sums;
 //! - [`solve`]: the damped step `(H + lambda D) d = -g` with degeneracy detection;
-//! - [`irls`]: the iteratively reweighted Levenberg-Marquardt driver with covariance output.
+//! - [`lm`]: the one Levenberg-Marquardt driver, generic over the problem and its linear
+//!   system ([`NormalEquations`] or a Schur complement), with one accept/reject rule, one
+//!   damping update and one set of stop reasons;
+//! - [`irls`]: iteratively reweighted least squares on residual rows through that driver,
+//!   with a covariance output (`None` when unknown).
 //!
 //! ```
 //! use nalgebra::{SVector, Vector2};
@@ -38,12 +42,16 @@
 #![warn(missing_docs)]
 
 pub mod irls;
+pub mod lm;
 pub mod loss;
 pub mod normal;
 pub mod scale;
 pub mod solve;
 
-pub use irls::{irls, Convergence, IrlsConfig, IrlsError, IrlsResult, Problem, Rows, ScaleMode};
+pub use irls::{irls, IrlsConfig, IrlsError, IrlsResult, Problem, Rows, ScaleMode};
+pub use lm::{
+    levenberg_marquardt, Convergence, LinearSystem, LmConfig, LmError, LmOutcome, LmProblem,
+};
 pub use loss::{Cauchy, Huber, Loss, RobustLoss, Squared, StudentT, Tukey};
 pub use normal::NormalEquations;
 pub use scale::{mad_sigma, mad_sigma_about_zero, median_in_place};

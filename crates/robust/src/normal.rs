@@ -12,6 +12,8 @@
 
 use nalgebra::{SMatrix, SVector};
 
+use crate::solve::scaled_condition;
+
 /// Running sums `H = J^T W J`, `g = J^T W r`, weighted cost and row count.
 #[derive(Debug, Clone, PartialEq)]
 pub struct NormalEquations<const N: usize> {
@@ -80,6 +82,30 @@ impl<const N: usize> NormalEquations<N> {
         }
         h
     }
+
+    /// Holds parameter `i` fixed: its row and column of `H` become those of the identity and
+    /// `g_i = 0`, so that a solve gives `delta_i = 0` and leaves the others unaffected.
+    pub fn fix(&mut self, i: usize) {
+        self.upper.row_mut(i).fill(0.0);
+        self.upper.column_mut(i).fill(0.0);
+        self.upper[(i, i)] = 1.0;
+        self.g[i] = 0.0;
+    }
+
+    /// Gauss-Newton covariance `sigma^2 H^-1` with `sigma^2 = 2 cost / (count - N)` (the
+    /// weighted residual variance per degree of freedom, floored at one degree).
+    ///
+    /// `None` (unknown, never a zero matrix) when `H` is not invertible or its Jacobi-scaled
+    /// condition number exceeds `max_condition`.
+    pub fn covariance(&self, max_condition: f64) -> Option<SMatrix<f64, N, N>> {
+        let h = self.hessian();
+        let condition = scaled_condition(&h);
+        if condition.is_nan() || condition > max_condition {
+            return None;
+        }
+        let dof = self.count.saturating_sub(N).max(1) as f64;
+        h.try_inverse().map(|inv| inv * (2.0 * self.cost / dof))
+    }
 }
 
 #[cfg(test)]
@@ -95,5 +121,26 @@ mod tests {
         assert_eq!(ne.g, j);
         assert_eq!(ne.cost, 0.25);
         assert_eq!(ne.count, 1);
+    }
+
+    #[test]
+    fn fixed_parameter_gets_a_zero_step_and_the_others_their_own() {
+        // Two coupled parameters; with the second fixed the first solves h00 d0 = -g0.
+        let mut ne = NormalEquations::<2>::new();
+        ne.add(&SVector::from([1.0, 1.0]), 2.0, 1.0);
+        ne.add(&SVector::from([1.0, -1.0]), 0.0, 1.0);
+        ne.fix(1);
+        let h = ne.hessian();
+        assert_eq!(h, SMatrix::<f64, 2, 2>::new(2.0, 0.0, 0.0, 1.0));
+        assert_eq!(ne.g, SVector::from([2.0, 0.0]));
+    }
+
+    #[test]
+    fn covariance_of_a_singular_system_is_unknown() {
+        let mut ne = NormalEquations::<2>::new();
+        for _ in 0..5 {
+            ne.add(&SVector::from([1.0, 1.0]), 0.5, 1.0);
+        }
+        assert_eq!(ne.covariance(1e10), None);
     }
 }

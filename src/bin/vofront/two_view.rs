@@ -217,8 +217,9 @@ pub fn print_text(outcome: &Outcome) {
     if let Some(r) = &outcome.translation {
         match r {
             Ok((d, ms)) => outln!(
-                "direct 2D   shift d = ({:+.3}, {:+.3}) px with I2(x + d) = I1(x); rmse {:.2} grey levels, sigma ({:.3}, {:.3}) px, {} iterations{}, {:.1} ms",
-                d.d.x, d.d.y, d.rmse, d.covariance[(0, 0)].sqrt(), d.covariance[(1, 1)].sqrt(),
+                "direct 2D   shift d = ({:+.3}, {:+.3}) px with I2(x + d) = I1(x); rmse {:.2} grey levels, sigma {} px, {} iterations{}, {:.1} ms",
+                d.d.x, d.d.y, d.rmse,
+                d.covariance.map_or("unknown".to_string(), |c| format!("({:.3}, {:.3})", c[(0, 0)].sqrt(), c[(1, 1)].sqrt())),
                 d.iterations.iter().sum::<usize>(),
                 if d.converged { "" } else { " (not converged: a 2D shift does not explain this pair)" },
                 ms),

@@ -23,7 +23,7 @@ use rayon::prelude::*;
 use vofront_robust::{Convergence, Loss};
 
 use crate::error::DirectError;
-use crate::lm::{covariance, run_level, LevelProblem, LmSettings, SERIAL_MAX};
+use crate::lm::{run_level, LevelProblem, LmSettings, SERIAL_MAX};
 use crate::plane::{Bilinear, Plane};
 use crate::rgbd::{pinhole_image, RgbdFrame, Undistorter};
 
@@ -130,8 +130,9 @@ pub struct Se3Result {
     pub sigma: f64,
     /// Valid residuals at full resolution.
     pub valid_pixels: usize,
-    /// Gauss-Newton covariance of the left pose increment `(rho, phi)`, metres and radians.
-    pub covariance: Matrix6<f64>,
+    /// Gauss-Newton covariance of the left pose increment `(rho, phi)`, metres and radians;
+    /// `None` (unknown) when the final normal equations are singular.
+    pub covariance: Option<Matrix6<f64>>,
     /// Why the full-resolution level stopped.
     pub reason: Convergence,
 }
@@ -268,7 +269,7 @@ impl Se3Reference {
                         (s + f64::from(r * r), n + usize::from(r.abs() <= limit))
                     });
                 let valid = out.valid.max(1) as f64;
-                let cov = covariance(&out.hessian, out.weighted_cost, out.valid);
+                let cov = out.system.covariance(cfg.max_condition);
                 let gain_ok = state.a >= 1.0 / cfg.max_gain && state.a <= cfg.max_gain;
                 if cfg.affine_brightness && !gain_ok {
                     return Err(DirectError::ImplausibleGain {
@@ -286,7 +287,7 @@ impl Se3Reference {
                     inlier_ratio: inliers as f64 / valid,
                     sigma: f64::from(out.scale),
                     valid_pixels: out.valid,
-                    covariance: cov.fixed_view::<6, 6>(0, 0).into_owned(),
+                    covariance: cov.map(|c| c.fixed_view::<6, 6>(0, 0).into_owned()),
                     reason: out.reason,
                 });
             }

@@ -16,12 +16,12 @@
 //!
 //! Across pyramid levels the warp is rescaled, `H_l = D H_0 D^-1`, `D = diag(2^-l, 2^-l, 1)`.
 
-use nalgebra::{DMatrix, Matrix3, SMatrix, SVector};
+use nalgebra::{DMatrix, Matrix3, SVector};
 use rayon::prelude::*;
 use vofront_robust::{Convergence, Loss, NormalEquations};
 
 use crate::error::DirectError;
-use crate::lm::{accumulate, covariance, run_level, LevelProblem, LmSettings, CHUNK, SERIAL_MAX};
+use crate::lm::{accumulate, run_level, LevelProblem, LmSettings, CHUNK, SERIAL_MAX};
 use crate::plane::{Bilinear, Gradients, Plane, Pyramid};
 
 mod select;
@@ -133,8 +133,9 @@ pub struct WarpResult {
     /// Valid residuals at full resolution over the number of pixels.
     pub used_fraction: f64,
     /// Covariance of the geometric parameters of the last `H(delta)` (Gauss-Newton
-    /// `sigma^2 H^-1` restricted to them), `k x k` for `k` geometric parameters.
-    pub covariance: DMatrix<f64>,
+    /// `sigma^2 H^-1` restricted to them), `k x k` for `k` geometric parameters; `None`
+    /// (unknown) when the final normal equations are singular.
+    pub covariance: Option<DMatrix<f64>>,
     /// False when the full-resolution level hit its iteration limit.
     pub converged: bool,
 }
@@ -512,7 +513,7 @@ pub(crate) fn align_2d<const M: usize>(
         }
     }
     let (out, rmse) = last.expect("level 0 is always run or returns an error");
-    let cov: SMatrix<f64, M, M> = covariance(&out.hessian, out.weighted_cost, out.valid);
+    let cov = out.system.covariance(cfg.max_condition);
     Ok(WarpResult {
         h: state.h / state.h[(2, 2)],
         a: state.a,
@@ -520,7 +521,7 @@ pub(crate) fn align_2d<const M: usize>(
         iterations,
         rmse,
         used_fraction: out.valid as f64 / (img1.width() * img1.height()) as f64,
-        covariance: DMatrix::from_fn(k, k, |r, c| cov[(r, c)]),
+        covariance: cov.map(|cov| DMatrix::from_fn(k, k, |r, c| cov[(r, c)])),
         converged: out.reason != Convergence::MaxIterations,
     })
 }

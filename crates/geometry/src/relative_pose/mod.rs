@@ -27,7 +27,8 @@ mod refine;
 
 pub use estimators::{Correspondences, EssentialEstimator, HomographyEstimator, HomographyModel};
 pub use refine::{
-    refine_maximum_likelihood, refine_relative_pose, tangent_basis, MlRefineConfig, RelState,
+    refine_maximum_likelihood, refine_relative_pose, refine_relative_pose_fit, tangent_basis,
+    MlRefineConfig, RelRefinement, RelState,
 };
 use vofront_robust::Loss;
 

@@ -7,8 +7,8 @@
 //! pixels, `f x2^T E x1 / sqrt((E x1)_1^2 + (E x1)_2^2 + (E^T x2)_1^2 + (E^T x2)_2^2)` with
 //! `E = [t]_x R`; analytic Jacobians.
 
-use nalgebra::{Matrix3, Rotation3, SVector, Vector3};
-use vofront_robust::{irls, IrlsConfig, Loss, Problem, Rows, ScaleMode};
+use nalgebra::{Matrix3, Matrix5, Rotation3, SVector, Vector3};
+use vofront_robust::{irls, Convergence, IrlsConfig, LmConfig, Loss, Problem, Rows, ScaleMode};
 
 use super::estimators::Correspondences;
 use crate::lie::{hat, so3_exp};
@@ -88,16 +88,34 @@ impl Problem<5> for SampsonProblem<'_> {
     }
 }
 
+/// A converged refinement of `(R, t)` and its uncertainty.
+#[derive(Debug, Clone, PartialEq)]
+pub struct RelRefinement {
+    /// The refined `(R, t)`, unit `t`.
+    pub state: RelState,
+    /// `H = J^T W J` of the Sampson residuals (pixels) at the solution, in the increment
+    /// `delta = (phi, a, b)` (radians, and unit-sphere tangent coordinates of `t`).
+    pub hessian: Matrix5<f64>,
+    /// Gauss-Newton covariance `sigma^2 H^-1` of `delta`; `None` (unknown) when `H` is
+    /// singular.
+    pub covariance: Option<Matrix5<f64>>,
+    /// Iterations run.
+    pub iterations: usize,
+    /// Why the refinement stopped.
+    pub reason: Convergence,
+}
+
 /// Refines `(R, t)` on the correspondences `indices` with `loss` on the Sampson distance in
-/// pixels divided by `sigma_px`; returns the input when the solve fails.
-pub fn refine_relative_pose(
+/// pixels divided by `sigma_px`, keeping the final Hessian and covariance; `None` when the
+/// solve fails (too few correspondences, degenerate normal equations).
+pub fn refine_relative_pose_fit(
     data: &Correspondences,
     indices: &[usize],
     focal: f64,
     sigma_px: f64,
     loss: Loss,
     init: RelState,
-) -> RelState {
+) -> Option<RelRefinement> {
     let mut problem = SampsonProblem {
         data,
         indices,
@@ -106,15 +124,36 @@ pub fn refine_relative_pose(
     let cfg = IrlsConfig {
         loss,
         scale: ScaleMode::Fixed(sigma_px),
-        max_iterations: 20,
-        min_step: 1e-9,
-        min_relative_decrease: 1e-8,
-        ..IrlsConfig::default()
+        lm: LmConfig {
+            max_iterations: 20,
+            min_step: 1e-9,
+            min_relative_decrease: 1e-8,
+            ..LmConfig::default()
+        },
     };
-    match irls(&mut problem, init, &cfg) {
-        Ok(res) => res.state,
-        Err(_) => init,
-    }
+    irls(&mut problem, init, &cfg)
+        .ok()
+        .map(|res| RelRefinement {
+            state: res.state,
+            hessian: res.hessian,
+            covariance: res.covariance,
+            iterations: res.iterations,
+            reason: res.reason,
+        })
+}
+
+/// Refines `(R, t)` on the correspondences `indices` with `loss` on the Sampson distance in
+/// pixels divided by `sigma_px`; returns the input when the solve fails (see
+/// [`refine_relative_pose_fit`]).
+pub fn refine_relative_pose(
+    data: &Correspondences,
+    indices: &[usize],
+    focal: f64,
+    sigma_px: f64,
+    loss: Loss,
+    init: RelState,
+) -> RelState {
+    refine_relative_pose_fit(data, indices, focal, sigma_px, loss, init).map_or(init, |r| r.state)
 }
 
 /// Settings of [`refine_maximum_likelihood`].

@@ -1,0 +1,284 @@
+//! The one Levenberg-Marquardt driver of vofront.
+//!
+//! Every nonlinear least-squares estimator (IRLS on residual rows, the direct aligners, the
+//! geometric refiners, bundle adjustment) runs this loop. The problem, an [`LmProblem`],
+//! evaluates its residuals at a state, gives their cost, accumulates `H = J^T W J` and
+//! `g = J^T W r` into a [`LinearSystem`] and retracts a step; it may do any of that in
+//! parallel. The linear system is pluggable: [`NormalEquations`] for small dense problems, a
+//! Schur-complement system for bundle adjustment. Each iteration:
+//!
+//! 1. `delta` solves `(H + lambda D) delta = -g` ([`LinearSystem::solve`]);
+//! 2. the step is *small* when `|delta| < min_step` in the problem's metric
+//!    ([`LmProblem::step_norm`]) or when it is shorter than `min_step_sigmas` of its own
+//!    standard deviations, `delta^T H delta / s^2 < min_step_sigmas^2` (`s` the residual scale);
+//! 3. the trial state `retract(x, delta)` is evaluated; it is **accepted when its cost is not
+//!    larger** (`C' <= C`, the cost at the current scale, infinite with fewer than `min_valid`
+//!    residuals); then `lambda <- lambda / 10`, the scale is re-estimated
+//!    ([`LmProblem::update_scale`]) and the problem linearised again;
+//! 4. a rejected trial restores the previous evaluation and sets
+//!    `lambda <- max(10 lambda, lambda_floor)`;
+//! 5. stop reasons ([`Convergence`]): a small step (accepted or not), an accepted relative cost
+//!    decrease below `min_relative_decrease`, `max_rejections` rejections in a row (no
+//!    decrease even with strong damping: a local minimum at the noise floor), or
+//!    `max_iterations` (accepted and rejected steps both count).
+
+use nalgebra::SVector;
+use thiserror::Error;
+
+use crate::normal::NormalEquations;
+use crate::solve::{solve_damped, Damping, SolveError};
+
+/// The linearised problem `H delta = -g` at the current state.
+pub trait LinearSystem {
+    /// The increment type (a fixed vector, or pose and point blocks).
+    type Step;
+    /// Solves `(H + lambda D) delta = -g`, `D` as `damping` says; a system whose (scaled)
+    /// condition exceeds `max_condition` is [`SolveError::Degenerate`].
+    fn solve(
+        &self,
+        lambda: f64,
+        damping: Damping,
+        max_condition: f64,
+    ) -> Result<Self::Step, SolveError>;
+    /// `delta^T H delta` with the undamped `H`: the squared step length in the metric of the
+    /// information (in units of `s^2`, the squared residual scale).
+    fn information_norm2(&self, step: &Self::Step) -> f64;
+}
+
+impl<const N: usize> LinearSystem for NormalEquations<N> {
+    type Step = SVector<f64, N>;
+
+    fn solve(
+        &self,
+        lambda: f64,
+        damping: Damping,
+        max_condition: f64,
+    ) -> Result<SVector<f64, N>, SolveError> {
+        solve_damped(&self.hessian(), &self.g, lambda, damping, max_condition)
+    }
+
+    fn information_norm2(&self, step: &SVector<f64, N>) -> f64 {
+        (step.transpose() * self.hessian() * step)[(0, 0)]
+    }
+}
+
+/// A nonlinear least-squares problem as the driver sees it.
+///
+/// The problem owns its current evaluation (residuals, Jacobians, weights' scale): the driver
+/// asks for an evaluation at a state, its cost, and its linearisation.
+pub trait LmProblem {
+    /// The estimated quantity (a vector, a pose, poses and points...).
+    type State: Clone;
+    /// The linear system the problem accumulates.
+    type System: LinearSystem;
+    /// Evaluates the residuals at `state`, which becomes the current evaluation; returns the
+    /// number of valid residuals.
+    fn evaluate(&mut self, state: &Self::State) -> usize;
+    /// Cost of the current evaluation at the current residual scale (e.g. the mean robust
+    /// cost `s^2 mean rho(r_i / s)`).
+    fn cost(&self) -> f64;
+    /// Re-estimates the residual scale from the current evaluation; called at the start and
+    /// after every accepted step. The default keeps a fixed scale.
+    fn update_scale(&mut self) {}
+    /// Residual scale `s` of the step-sigmas test; 1 by default.
+    fn scale(&self) -> f64 {
+        1.0
+    }
+    /// `H = J^T W J`, `g = J^T W r` of the current evaluation at the current scale.
+    fn linearize(&mut self) -> Self::System;
+    /// `state` moved by the local increment `step`.
+    fn retract(
+        &self,
+        state: &Self::State,
+        step: &<Self::System as LinearSystem>::Step,
+    ) -> Self::State;
+    /// Length of `step` in the problem's metric, compared with [`LmConfig::min_step`].
+    fn step_norm(&self, step: &<Self::System as LinearSystem>::Step) -> f64;
+    /// Called before a trial evaluation: a problem with a second set of buffers saves the
+    /// current evaluation here.
+    fn save(&mut self) {}
+    /// Called after a rejected trial: brings back the evaluation at `state` (the one before
+    /// the trial), by default by evaluating again.
+    fn restore(&mut self, state: &Self::State) {
+        self.evaluate(state);
+    }
+}
+
+/// Settings of [`levenberg_marquardt`].
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct LmConfig {
+    /// Upper bound on iterations (accepted and rejected steps both count).
+    pub max_iterations: usize,
+    /// A step with [`LmProblem::step_norm`] below this is small.
+    pub min_step: f64,
+    /// A step shorter than this many of its own standard deviations
+    /// (`delta^T H delta / s^2 < min_step_sigmas^2`) is small; 0 disables the test.
+    pub min_step_sigmas: f64,
+    /// Stop when an accepted step lowers the cost by less than this fraction.
+    pub min_relative_decrease: f64,
+    /// Starting `lambda`; 0 starts as Gauss-Newton.
+    pub initial_lambda: f64,
+    /// A rejected step raises `lambda` to at least this.
+    pub lambda_floor: f64,
+    /// This many rejected steps in a row end the run ([`Convergence::NoDecrease`]).
+    pub max_rejections: usize,
+    /// Form of the damping matrix `D`.
+    pub damping: Damping,
+    /// Largest acceptable scaled condition number of `H`.
+    pub max_condition: f64,
+    /// Fewest valid residuals for a state to be usable.
+    pub min_valid: usize,
+}
+
+impl Default for LmConfig {
+    /// 50 iterations, `min_step` 1e-10, no step-sigmas test, `min_relative_decrease` 1e-10,
+    /// `lambda` from 1e-4 (floor 1e-4), 10 rejections in a row, Marquardt damping
+    /// `D = diag(H)`, condition limit 1e10, at least one valid residual.
+    fn default() -> Self {
+        Self {
+            max_iterations: 50,
+            min_step: 1e-10,
+            min_step_sigmas: 0.0,
+            min_relative_decrease: 1e-10,
+            initial_lambda: 1e-4,
+            lambda_floor: 1e-4,
+            max_rejections: 10,
+            damping: Damping::Diagonal,
+            max_condition: 1e10,
+            min_valid: 1,
+        }
+    }
+}
+
+/// Why [`levenberg_marquardt`] stopped.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Convergence {
+    /// The step was small (see [`LmConfig::min_step`], [`LmConfig::min_step_sigmas`]).
+    SmallStep,
+    /// The relative cost decrease fell below `min_relative_decrease`.
+    SmallCostChange,
+    /// `max_iterations` was reached.
+    MaxIterations,
+    /// `max_rejections` steps in a row did not lower the cost: a (local) minimum.
+    NoDecrease,
+}
+
+/// What [`levenberg_marquardt`] could not do.
+#[derive(Debug, Clone, Copy, PartialEq, Error)]
+pub enum LmError {
+    /// The starting state has fewer valid residuals than [`LmConfig::min_valid`].
+    #[error("{rows} valid residuals, at least {required} needed")]
+    TooFewResiduals {
+        /// Valid residuals at the starting state.
+        rows: usize,
+        /// The minimum required.
+        required: usize,
+    },
+    /// The step could not be computed (degenerate or non-finite normal equations).
+    #[error(transparent)]
+    Solve(#[from] SolveError),
+}
+
+/// The estimate and how it was reached.
+#[derive(Debug, Clone)]
+pub struct LmOutcome<S, Y> {
+    /// The final state.
+    pub state: S,
+    /// The linear system at the final state.
+    pub system: Y,
+    /// Cost at the start and after each accepted step (the last one is the final cost).
+    pub costs: Vec<f64>,
+    /// Iterations run (accepted and rejected steps).
+    pub iterations: usize,
+    /// Why it stopped.
+    pub reason: Convergence,
+    /// Valid residuals at the final state.
+    pub valid: usize,
+}
+
+impl<S, Y> LmOutcome<S, Y> {
+    /// The final cost.
+    pub fn cost(&self) -> f64 {
+        self.costs.last().copied().unwrap_or(f64::INFINITY)
+    }
+}
+
+/// Runs Levenberg-Marquardt on `problem` from `x0`; see the module documentation.
+pub fn levenberg_marquardt<P: LmProblem>(
+    problem: &mut P,
+    x0: P::State,
+    cfg: &LmConfig,
+) -> Result<LmOutcome<P::State, P::System>, LmError> {
+    let mut state = x0;
+    let mut valid = problem.evaluate(&state);
+    if valid < cfg.min_valid {
+        return Err(LmError::TooFewResiduals {
+            rows: valid,
+            required: cfg.min_valid,
+        });
+    }
+    problem.update_scale();
+    let mut cost = problem.cost();
+    let mut system = problem.linearize();
+    let mut costs = vec![cost];
+    let mut lambda = cfg.initial_lambda;
+    let mut rejections = 0;
+    let mut reason = Convergence::MaxIterations;
+    let mut iterations = 0;
+    while iterations < cfg.max_iterations {
+        iterations += 1;
+        let step = system.solve(lambda, cfg.damping, cfg.max_condition)?;
+        let small = problem.step_norm(&step) < cfg.min_step
+            || (cfg.min_step_sigmas > 0.0 && {
+                let s = problem.scale();
+                system.information_norm2(&step) / (s * s) < cfg.min_step_sigmas.powi(2)
+            });
+        let candidate = problem.retract(&state, &step);
+        problem.save();
+        let trial_valid = problem.evaluate(&candidate);
+        let trial_cost = if trial_valid >= cfg.min_valid {
+            problem.cost()
+        } else {
+            f64::INFINITY
+        };
+        if trial_cost <= cost {
+            let relative = (cost - trial_cost) / cost.max(f64::MIN_POSITIVE);
+            state = candidate;
+            valid = trial_valid;
+            rejections = 0;
+            lambda *= 0.1;
+            problem.update_scale();
+            cost = problem.cost();
+            system = problem.linearize();
+            costs.push(cost);
+            if small {
+                reason = Convergence::SmallStep;
+                break;
+            }
+            if relative < cfg.min_relative_decrease {
+                reason = Convergence::SmallCostChange;
+                break;
+            }
+        } else {
+            problem.restore(&state);
+            if small {
+                reason = Convergence::SmallStep;
+                break;
+            }
+            lambda = (lambda * 10.0).max(cfg.lambda_floor);
+            rejections += 1;
+            if rejections >= cfg.max_rejections {
+                reason = Convergence::NoDecrease;
+                break;
+            }
+        }
+    }
+    Ok(LmOutcome {
+        state,
+        system,
+        costs,
+        iterations,
+        reason,
+        valid,
+    })
+}
