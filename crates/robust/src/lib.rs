@@ -10,6 +10,7 @@
 //! - [`normal`]: accumulation of the normal equations `H = J^T W J`, `g = J^T W r` for a fixed
 //!   parameter count, mergeable so that rayon can reduce partial sums;
 //! - [`solve`]: the damped step `(H + lambda D) d = -g` with degeneracy detection;
+//! - [`quality`]: the quality record (verdict, reasons, support, covariance) of every estimate;
 //! - [`irls`]: the iteratively reweighted Levenberg-Marquardt driver with covariance output.
 //!
 //! ```
@@ -40,11 +41,13 @@
 pub mod irls;
 pub mod loss;
 pub mod normal;
+pub mod quality;
 pub mod scale;
 pub mod solve;
 
 pub use irls::{irls, Convergence, IrlsConfig, IrlsError, IrlsResult, Problem, Rows, ScaleMode};
 pub use loss::{Cauchy, Huber, Loss, RobustLoss, Squared, StudentT, Tukey};
 pub use normal::NormalEquations;
+pub use quality::{Quality, QualityConfig, Reason, Support, Uncertainty, Verdict};
 pub use scale::{mad_sigma, mad_sigma_about_zero, median_in_place};
 pub use solve::{scaled_condition, solve_damped, Damping, SolveError};

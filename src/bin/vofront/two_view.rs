@@ -9,12 +9,36 @@ use vofront::direct::photometric_residual_map;
 use vofront::draw;
 use vofront::input::{load_depth, load_gray};
 use vofront::pipeline::gray_plane;
-pub use vofront::report::two_view::{estimate, to_json, Inputs, Outcome};
+pub use vofront::report::two_view::{estimate, to_json, Inputs, Outcome, Status};
+use vofront::robust::Quality;
 
 use crate::args::TwoViewArgs;
 
 /// Most match lines drawn in `matches.png`.
 const MAX_MATCH_LINES: usize = 250;
+
+/// `verdict ok` or `verdict unreliable (low_parallax, ...)`, then the sigmas the record has.
+pub fn verdict_line(q: &Quality) -> String {
+    let mut line = format!("verdict {}", q.verdict);
+    if !q.reasons.is_empty() {
+        let names: Vec<&str> = q.reasons.iter().map(|r| r.name()).collect();
+        line += &format!(" ({})", names.join(", "));
+    }
+    let u = &q.uncertainty;
+    let sigmas = [
+        u.rotation_sigma_deg
+            .map(|s| format!("rotation sigma {s:.3} deg")),
+        u.translation_direction_sigma_deg
+            .map(|s| format!("translation direction sigma {s:.2} deg")),
+        u.translation_sigma_m
+            .map(|s| format!("translation sigma {:.1} mm", s * 1e3)),
+        u.shift_sigma_px.map(|s| format!("shift sigma {s:.3} px")),
+    ];
+    for s in sigmas.into_iter().flatten() {
+        line += &format!("; {s}");
+    }
+    line
+}
 
 /// Human-readable report, one block per estimator, with what its quality numbers mean.
 pub fn print_text(outcome: &Outcome) {
@@ -43,6 +67,7 @@ pub fn print_text(outcome: &Outcome) {
                         ""
                     }
                 );
+                outln!("            {}", verdict_line(&e.quality));
                 let ms = f.timings;
                 outln!(
                     "            {:.1} ms (detect {:.1}, match {:.1}, estimate {:.1})",
@@ -65,6 +90,9 @@ pub fn print_text(outcome: &Outcome) {
                 ms),
             Err(e) => outln!("direct 2D   failed: {e}"),
         }
+        if let Some(q) = &outcome.translation_quality {
+            outln!("            {}", verdict_line(q));
+        }
     }
     if let Some(r) = &outcome.se3 {
         match r {
@@ -79,6 +107,15 @@ pub fn print_text(outcome: &Outcome) {
                     s.a, s.b, s.rmse, 100.0 * s.inlier_ratio, s.valid_pixels, ms);
             }
             Err(e) => outln!("direct SE3  failed: {e}"),
+        }
+        if let Some(q) = &outcome.se3_quality {
+            outln!("            {}", verdict_line(q));
+        }
+    }
+    if let Some(rec) = &outcome.report().recommended {
+        match rec.estimate {
+            Some(name) => outln!("recommended {name}: {}", rec.why),
+            None => outln!("recommended none: {}", rec.why),
         }
     }
 }
@@ -165,8 +202,8 @@ pub fn write_pictures(dir: &Path, inputs: &Inputs, outcome: &Outcome) -> Result<
     Ok(())
 }
 
-/// Runs `vofront two-view`; `Ok(false)` when no estimator produced an estimate.
-pub fn run(args: &TwoViewArgs) -> Result<bool, String> {
+/// Runs `vofront two-view`; the status decides the exit code (0, 4 or 1).
+pub fn run(args: &TwoViewArgs) -> Result<Status, String> {
     let camera = args.camera.camera()?;
     let img1 = load_gray(&args.img1).map_err(|e| e.to_string())?;
     let img2 = load_gray(&args.img2).map_err(|e| e.to_string())?;
@@ -191,5 +228,5 @@ pub fn run(args: &TwoViewArgs) -> Result<bool, String> {
     if let Some(dir) = &args.out_dir {
         write_pictures(dir, &inputs, &outcome)?;
     }
-    Ok(outcome.any_estimate())
+    Ok(outcome.status())
 }
