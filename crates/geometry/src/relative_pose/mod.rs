@@ -562,6 +562,12 @@ pub fn estimate_relative_pose(
             need: MIN_CORRESPONDENCES,
         });
     }
+    // The information comes from the correspondences the maximum-likelihood refit used (its
+    // `3 sigma` gate), not from the inlier threshold, which may cut into the noise.
+    let gate_sq = (MlRefineConfig::default().gate_sigmas * sigma_px / focal).powi(2);
+    let gated: Vec<usize> = (0..data.len())
+        .filter(|&k| est.residual_sq(&e, k) < gate_sq.max(thr_sq))
+        .collect();
     let evidence = quality::Evidence {
         candidates: n_in,
         inliers: used.len(),
@@ -572,7 +578,7 @@ pub fn estimate_relative_pose(
         hypotheses: hypotheses as f64,
         sample: MIN_CORRESPONDENCES,
         sigma_px,
-        information: Some(sampson_information(&data, &used, focal, &state)),
+        information: Some(sampson_information(&data, &gated, focal, &state)),
         iterations: iterations.0 + iterations.1,
     };
     let low_parallax = final_rec.median_parallax_deg < cfg.min_parallax_deg;
