@@ -18,6 +18,7 @@ pub mod error;
 pub mod klt;
 mod lm;
 pub mod plane;
+pub mod quality;
 pub mod rgbd;
 pub mod se3;
 pub mod translation;

@@ -13,6 +13,7 @@
 //! - [`lm`]: the one Levenberg-Marquardt driver, generic over the problem and its linear
 //!   system ([`NormalEquations`] or a Schur complement), with one accept/reject rule, one
 //!   damping update and one set of stop reasons;
+//! - [`quality`]: the quality record (verdict, reasons, support, covariance) of every estimate;
 //! - [`irls`]: iteratively reweighted least squares on residual rows through that driver,
 //!   with a covariance output (`None` when unknown).
 //!
@@ -45,6 +46,7 @@ pub mod irls;
 pub mod lm;
 pub mod loss;
 pub mod normal;
+pub mod quality;
 pub mod scale;
 pub mod solve;
 
@@ -54,5 +56,6 @@ pub use lm::{
 };
 pub use loss::{Cauchy, Huber, Loss, RobustLoss, Squared, StudentT, Tukey};
 pub use normal::NormalEquations;
+pub use quality::{Quality, QualityConfig, Reason, Support, Uncertainty, Verdict};
 pub use scale::{mad_sigma, mad_sigma_about_zero, median_in_place};
 pub use solve::{scaled_condition, solve_damped, Damping, SolveError};

@@ -19,8 +19,12 @@ pub struct Cli {
 #[derive(Debug, Subcommand)]
 pub enum Command {
     /// Relative pose of two frames by features and by direct alignment, with pictures.
+    /// Each estimate carries a verdict (ok, unreliable, failed) with reasons and sigmas.
+    /// Exit code 0: at least one estimate is ok; 4: estimates printed but none is ok;
+    /// 1: no estimate could be computed.
     TwoView(TwoViewArgs),
-    /// Robust relative pose from given pixel correspondences (CSV x1,y1,x2,y2).
+    /// Robust relative pose from given pixel correspondences (CSV x1,y1,x2,y2), as JSON with
+    /// its verdict. Exit code 0: the pose is ok; 4: printed but not ok; 1: no pose at all.
     Relpose(RelposeArgs),
     /// Track a whole sequence (TUM RGB-D, KITTI or EuRoC folder) into a TUM trajectory.
     /// Exit code 3: tracking was lost for good (partial results are still written).
@@ -114,6 +118,16 @@ pub enum Method {
     All,
 }
 
+impl From<Method> for vofront::report::two_view::Method {
+    fn from(m: Method) -> Self {
+        match m {
+            Method::Feature => Self::Feature,
+            Method::Direct => Self::Direct,
+            Method::All => Self::All,
+        }
+    }
+}
+
 /// Flags of `vofront two-view`.
 #[derive(Debug, Args)]
 pub struct TwoViewArgs {
@@ -152,6 +166,10 @@ pub struct RelposeArgs {
     /// Camera.
     #[command(flatten)]
     pub camera: CameraArgs,
+    /// Print one JSON object (the keys of two-view's `feature` object and `ms`); relpose
+    /// always prints JSON, the flag is accepted like every other command's.
+    #[arg(long)]
+    pub json: bool,
 }
 
 /// Alignment of the estimate before the errors are computed.

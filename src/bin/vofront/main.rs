@@ -1,8 +1,9 @@
 //! The `vofront` command line; see `vofront --help`.
 //!
-//! Exit codes: 0 success (for `two-view`: at least one estimator produced an estimate);
-//! 1 the job failed, with a one-line message saying why; 2 bad command line; 3 (`odometry`)
-//! tracking was lost for good, partial results written.
+//! Exit codes: 0 success (for `two-view` and `relpose`: at least one estimate is `ok`);
+//! 1 the job failed, with a one-line message saying why (no estimate at all); 2 bad command
+//! line; 3 (`odometry`) tracking was lost for good, partial results written; 4 (`two-view`,
+//! `relpose`) estimates were printed but none is `ok`.
 /// `println!` that ends the process quietly (exit 141, as a SIGPIPE would) when standard
 /// output has been closed, e.g. by `vofront ... | head`, instead of panicking.
 macro_rules! outln {
@@ -36,6 +37,16 @@ use std::process::ExitCode;
 use clap::Parser;
 
 use args::{Cli, Command};
+use two_view::Status;
+
+/// Exit status when estimates were printed but none is `ok`.
+const EXIT_NONE_OK: u8 = 4;
+
+/// Says so on standard error and exits with [`EXIT_NONE_OK`].
+fn none_ok() -> ExitCode {
+    eprintln!("vofront: no estimate is ok (see the verdicts and reasons printed)");
+    ExitCode::from(EXIT_NONE_OK)
+}
 
 fn main() -> ExitCode {
     let cli = match Cli::try_parse() {
@@ -53,14 +64,17 @@ fn main() -> ExitCode {
     };
     let result = match &cli.command {
         None => demo::run(),
-        Some(Command::TwoView(a)) => two_view::run(a).and_then(|any| {
-            if any {
-                Ok(())
-            } else {
-                Err("no estimator produced an estimate".to_string())
-            }
-        }),
-        Some(Command::Relpose(a)) => relpose::run(a),
+        Some(Command::TwoView(a)) => match two_view::run(a) {
+            Ok(Status::Ok) => Ok(()),
+            Ok(Status::NoneOk) => return none_ok(),
+            Ok(Status::NoEstimate) => Err("no estimator produced an estimate".to_string()),
+            Err(e) => Err(e),
+        },
+        Some(Command::Relpose(a)) => match relpose::run(a) {
+            Ok(true) => Ok(()),
+            Ok(false) => return none_ok(),
+            Err(e) => Err(e),
+        },
         Some(Command::Odometry(a)) => match odometry_cmd::run(a) {
             Ok(false) => Ok(()),
             Ok(true) => {

@@ -23,14 +23,15 @@
 //!    the motion is a pure rotation: least-squares rotation of the rays, zero translation.
 
 mod estimators;
+mod quality;
 mod refine;
 
 pub use estimators::{Correspondences, EssentialEstimator, HomographyEstimator, HomographyModel};
 pub use refine::{
-    refine_maximum_likelihood, refine_relative_pose, refine_relative_pose_fit, tangent_basis,
-    MlRefineConfig, RelRefinement, RelState,
+    refine_maximum_likelihood, refine_relative_pose, refine_relative_pose_fit, sampson_information,
+    tangent_basis, MlRefineConfig, RelRefinement, RelState,
 };
-use vofront_robust::Loss;
+use vofront_robust::{Loss, Quality, QualityConfig, Reason};
 
 use nalgebra::{
     Isometry3, Matrix3, Point3, Rotation3, Translation3, UnitQuaternion, Vector2, Vector3,
@@ -59,8 +60,11 @@ const ROTATION_SUPPORT: f64 = 0.9;
 const AMBIGUITY_MARGIN: f64 = 0.95;
 /// Lower bound on the homography's iteration budget.
 const H_MIN_ITERATIONS: usize = 100;
-/// Minimum correspondences: the five-point solver's sample.
+/// Minimum correspondences: the five-point solver's sample; fewer final inliers is
+/// [`GeometryError::NoModel`].
 const MIN_CORRESPONDENCES: usize = 5;
+/// Minimal sample of a rotation-only model (two rays fix a rotation).
+const ROTATION_SAMPLE: usize = 2;
 
 /// Settings of [`estimate_relative_pose`].
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -82,6 +86,8 @@ pub struct RelativePoseConfig {
     pub homography_ratio: f64,
     /// Points farther than this many baselines are not counted by the chirality test.
     pub far_distance: f64,
+    /// Minimum support of an `ok` pose ([`RelativePose::quality`]).
+    pub quality: QualityConfig,
 }
 
 impl Default for RelativePoseConfig {
@@ -95,6 +101,7 @@ impl Default for RelativePoseConfig {
             min_parallax_deg: 1.0,
             homography_ratio: 0.45,
             far_distance: 50.0,
+            quality: QualityConfig::default(),
         }
     }
 }
@@ -145,6 +152,11 @@ pub struct RelativePose {
     pub homography_score_ratio: f64,
     /// RANSAC iterations (essential, homography).
     pub iterations: (usize, usize),
+    /// Verdict, reasons, support (with the a-contrario chance test), Sampson noise scale and
+    /// the covariance of the rotation and of the translation direction; `iterations` there is
+    /// the RANSAC total and `converged` is always true (the refit stops at a stable inlier set
+    /// or its round limit).
+    pub quality: Quality,
 }
 
 /// Checks and undistorts the input; returns the correspondences and their input indices.
@@ -382,6 +394,8 @@ pub fn estimate_relative_pose(
                 .as_ref()
                 .map_or(true, |r| r.good < MIN_CORRESPONDENCES));
 
+    let sigma = 0.5 * cfg.threshold_px;
+    let hypotheses = quality::ESSENTIAL_SOLUTIONS * iterations.0 + iterations.1;
     let rotation_only_pose = |initial: &[Rotation3<f64>], parallax_deg: f64| {
         // The starting rotation whose refinement explains most correspondences.
         let (rotation, inl) = initial
@@ -391,10 +405,39 @@ pub fn estimate_relative_pose(
             .ok_or_else(|| {
                 GeometryError::Degenerate("no motion in front of both cameras".into())
             })?;
+        if inl.len() < MIN_CORRESPONDENCES {
+            return Err(GeometryError::NoModel {
+                best: inl.len(),
+                need: MIN_CORRESPONDENCES,
+            });
+        }
         let mut inliers = vec![false; n_in];
         for &k in &inl {
             inliers[index[k]] = true;
         }
+        let rotation_model = HomographyModel {
+            h: *rotation.matrix(),
+            h_inv: rotation.matrix().transpose(),
+        };
+        let transfer =
+            |c: &Correspondences, k: usize| HomographyEstimator(c).residual_sq(&rotation_model, k);
+        let h_thr_sq = (threshold * H_THRESHOLD_FACTOR).powi(2);
+        let residuals: Vec<f64> = inl
+            .iter()
+            .map(|&k| transfer(&data, k).sqrt() * focal)
+            .collect();
+        let evidence = quality::Evidence {
+            candidates: n_in,
+            inliers: inl.len(),
+            tested: data.len(),
+            p0: quality::chance_rate(&data, |c, k| transfer(c, k) < h_thr_sq),
+            hypotheses: hypotheses as f64,
+            sample: ROTATION_SAMPLE,
+            sigma_px: vofront_robust::mad_sigma_about_zero(&residuals).unwrap_or(sigma),
+            information: None,
+            iterations: iterations.0 + iterations.1,
+        };
+        let flags = [Reason::PureRotation, Reason::LowParallax];
         let pose = isometry(&rotation, &Vector3::zeros());
         Ok(RelativePose {
             rotation: pose.rotation,
@@ -412,6 +455,7 @@ pub fn estimate_relative_pose(
             alternative: None,
             homography_score_ratio: ratio,
             iterations,
+            quality: quality::judge(&evidence, &flags, &cfg.quality),
         })
     };
     if rotation_only_case {
@@ -428,7 +472,6 @@ pub fn estimate_relative_pose(
     // Refine each candidate motion on its triangulated correspondences; keep the lowest MSAC
     // Sampson cost over all correspondences.
     let thr_sq = threshold * threshold;
-    let sigma = 0.5 * cfg.threshold_px;
     let est = EssentialEstimator(&data, 0.5 * threshold);
     let mut refined: Vec<(RelState, f64, Model, &PoseRecovery)> = Vec::with_capacity(2);
     let candidates = [
@@ -492,13 +535,13 @@ pub fn estimate_relative_pose(
     });
     // Final maximum-likelihood refit of the chosen motion with the noise scale estimated from
     // its own residuals.
-    let mut state = state;
+    let (mut state, mut sigma_px) = (state, sigma);
     if cfg.refine {
         let ml = MlRefineConfig {
             initial_sigma_px: sigma,
             ..MlRefineConfig::default()
         };
-        state = refine_maximum_likelihood(&data, focal, &ml, state).0;
+        (state, sigma_px) = refine_maximum_likelihood(&data, focal, &ml, state);
     }
     let (ambiguous, alternative) = match rival {
         Some(r) => (true, Some(isometry(&r.0 .0, &r.0 .1))),
@@ -512,6 +555,40 @@ pub fn estimate_relative_pose(
         .collect();
     let final_rec = select_by_chirality(&[(state.0, state.1)], &b1, &b2, &mask, &rec_cfg)
         .ok_or_else(|| GeometryError::Degenerate("refined pose lost chirality".into()))?;
+    let used: Vec<usize> = (0..data.len()).filter(|&k| mask[k]).collect();
+    if used.len() < MIN_CORRESPONDENCES {
+        return Err(GeometryError::NoModel {
+            best: used.len(),
+            need: MIN_CORRESPONDENCES,
+        });
+    }
+    // The information comes from the correspondences the maximum-likelihood refit used (its
+    // `3 sigma` gate), not from the inlier threshold, which may cut into the noise.
+    let gate_sq = (MlRefineConfig::default().gate_sigmas * sigma_px / focal).powi(2);
+    let gated: Vec<usize> = (0..data.len())
+        .filter(|&k| est.residual_sq(&e, k) < gate_sq.max(thr_sq))
+        .collect();
+    let evidence = quality::Evidence {
+        candidates: n_in,
+        inliers: used.len(),
+        tested: data.len(),
+        p0: quality::chance_rate(&data, |c, k| {
+            EssentialEstimator(c, 0.0).residual_sq(&e, k) < thr_sq
+        }),
+        hypotheses: hypotheses as f64,
+        sample: MIN_CORRESPONDENCES,
+        sigma_px,
+        information: Some(sampson_information(&data, &gated, focal, &state)),
+        iterations: iterations.0 + iterations.1,
+    };
+    let low_parallax = final_rec.median_parallax_deg < cfg.min_parallax_deg;
+    let flags: Vec<Reason> = [
+        (low_parallax, Reason::LowParallax),
+        (ambiguous, Reason::PlanarAmbiguous),
+    ]
+    .into_iter()
+    .filter_map(|(on, r)| on.then_some(r))
+    .collect();
     let mut inliers = vec![false; n_in];
     let mut points = vec![None; n_in];
     for (k, &i) in index.iter().enumerate() {
@@ -529,12 +606,13 @@ pub fn estimate_relative_pose(
         triangulated: final_rec.good,
         points,
         parallax_deg: final_rec.median_parallax_deg,
-        low_parallax: final_rec.median_parallax_deg < cfg.min_parallax_deg,
+        low_parallax,
         pure_rotation: false,
         ambiguous,
         alternative,
         homography_score_ratio: ratio,
         iterations,
+        quality: quality::judge(&evidence, &flags, &cfg.quality),
     })
 }
 

@@ -105,6 +105,25 @@ pub struct RelRefinement {
     pub reason: Convergence,
 }
 
+/// Gauss-Newton information `J^T J` of the Sampson distances (pixels) of `indices` at
+/// `state`, in the increment `delta = (phi, a, b)` of [`refine_relative_pose`]; the covariance
+/// of the estimate is `sigma_px^2 (J^T J)^-1`.
+pub fn sampson_information(
+    data: &Correspondences,
+    indices: &[usize],
+    focal: f64,
+    state: &RelState,
+) -> nalgebra::SMatrix<f64, 5, 5> {
+    let mut problem = SampsonProblem {
+        data,
+        indices,
+        focal,
+    };
+    let mut rows = Rows::default();
+    problem.evaluate(state, &mut rows);
+    rows.jacobians.iter().map(|j| j * j.transpose()).sum()
+}
+
 /// Refines `(R, t)` on the correspondences `indices` with `loss` on the Sampson distance in
 /// pixels divided by `sigma_px`, keeping the final Hessian and covariance; `None` when the
 /// solve fails (too few correspondences, degenerate normal equations).

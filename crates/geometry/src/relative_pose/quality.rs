@@ -1,0 +1,107 @@
+//! The quality record of a relative pose: support, the a-contrario chance test and the
+//! covariance of `(R, t)` from the Sampson refinement's Hessian.
+//!
+//! Chance test: `p0`, the probability that a random correspondence falls inside the final
+//! model's inlier region, is measured by applying the model's own inlier test to the data with
+//! the frame-2 points re-paired by cyclic shifts (correspondences that carry no information
+//! about the motion but keep the image distribution of the features). The consensus is then
+//! scored by [`log10_nfa`] with the number of hypotheses RANSAC tried.
+
+use nalgebra::{Matrix5, SMatrix};
+use vofront_robust::quality::{block_rows, log10_nfa, rms_of};
+use vofront_robust::{Quality, QualityConfig, Reason, Support, Uncertainty};
+
+use super::estimators::Correspondences;
+
+/// Re-paired correspondences measured for `p0` (about; at most `n - 1` shifts of `n` pairs).
+const CHANCE_SAMPLES: usize = 20_000;
+/// Essential-matrix hypotheses per five-point sample (the solver's largest root count).
+pub(super) const ESSENTIAL_SOLUTIONS: usize = 10;
+
+/// `p0`: the share of re-paired correspondences `(x1_i, x2_{i+s})` that `is_inlier` accepts,
+/// with a Laplace correction so that it is never exactly zero.
+pub(super) fn chance_rate(
+    data: &Correspondences,
+    is_inlier: impl Fn(&Correspondences, usize) -> bool,
+) -> f64 {
+    let n = data.len();
+    if n < 2 {
+        return 1.0;
+    }
+    let shifts = CHANCE_SAMPLES.div_ceil(n).clamp(1, n - 1);
+    let (mut hits, mut total) = (0usize, 0usize);
+    for k in 0..shifts {
+        // Shifts spread over 1..n-1.
+        let s = 1 + k * (n - 1) / shifts;
+        let mut shuffled = Correspondences::default();
+        for i in 0..n {
+            shuffled.push(&data.p1(i), &data.p2((i + s) % n));
+        }
+        hits += (0..n).filter(|&i| is_inlier(&shuffled, i)).count();
+        total += n;
+    }
+    (hits as f64 + 1.0) / (total as f64 + 2.0)
+}
+
+/// What [`judge`] needs beyond the estimator's flags.
+pub(super) struct Evidence {
+    /// Input correspondences.
+    pub candidates: usize,
+    /// Inliers of the final pose among them.
+    pub inliers: usize,
+    /// Correspondences the chance test ran on (the usable ones).
+    pub tested: usize,
+    /// Chance rate of the final model ([`chance_rate`]).
+    pub p0: f64,
+    /// Hypotheses RANSAC scored.
+    pub hypotheses: f64,
+    /// Minimal sample size of the final model.
+    pub sample: usize,
+    /// Noise scale of the Sampson distance, pixels.
+    pub sigma_px: f64,
+    /// Sampson information `J^T J` at the final pose, when a translation was estimated.
+    pub information: Option<Matrix5<f64>>,
+    /// RANSAC iterations (essential + homography).
+    pub iterations: usize,
+}
+
+/// The quality record of a relative pose with the estimator's own `flags` (parallax, pure
+/// rotation, ambiguity). Covariance `sigma^2 (J^T J)^-1` over `(phi, a, b)`: rotation block
+/// `phi` (rad^2) and the translation direction's tangent block `(a, b)` (rad^2); a singular
+/// information matrix adds [`Reason::Degenerate`].
+pub(super) fn judge(ev: &Evidence, flags: &[Reason], cfg: &QualityConfig) -> Quality {
+    let log10 = log10_nfa(ev.tested, ev.inliers, ev.sample, ev.p0, ev.hypotheses);
+    let support = Support {
+        log10_nfa: Some(log10),
+        ..Support::new(ev.inliers, ev.candidates)
+    };
+    let mut flags = flags.to_vec();
+    let covariance: Option<SMatrix<f64, 5, 5>> = ev.information.and_then(|h| {
+        h.try_inverse()
+            .map(|inv| inv * (ev.sigma_px * ev.sigma_px))
+            .filter(|c| c.iter().all(|v| v.is_finite()) && (0..5).all(|i| c[(i, i)] >= 0.0))
+    });
+    if ev.information.is_some() && covariance.is_none() {
+        flags.push(Reason::Degenerate);
+    }
+    let uncertainty = covariance.map_or_else(Uncertainty::default, |c| {
+        let rotation = block_rows(|r, k| c[(r, k)], 0, 3);
+        let direction = block_rows(|r, k| c[(r, k)], 3, 2);
+        Uncertainty {
+            rotation_sigma_deg: Some(rms_of(&rotation, 1f64.to_degrees())),
+            translation_direction_sigma_deg: Some(rms_of(&direction, 1f64.to_degrees())),
+            rotation_covariance: Some(rotation),
+            translation_direction_covariance: Some(direction),
+            ..Uncertainty::default()
+        }
+    });
+    Quality::judge(
+        support,
+        ev.sigma_px,
+        ev.iterations,
+        true,
+        uncertainty,
+        &flags,
+        cfg,
+    )
+}

@@ -1,0 +1,209 @@
+//! The quality record of the relative pose: verdicts on good and hopeless input, and the
+//! calibration of its covariance (normalised estimation error squared) against known noise.
+
+mod common;
+
+use nalgebra::{Matrix2, Matrix3, Rotation3, Vector2};
+use rand::rngs::StdRng;
+use rand::{Rng, SeedableRng};
+use vofront_geometry::lie::so3_log;
+use vofront_geometry::relative_pose::{
+    estimate_relative_pose, tangent_basis, RelativePose, RelativePoseConfig,
+};
+use vofront_robust::{Reason, Verdict};
+
+/// Seeds per noise level of the calibration test.
+const SEEDS: u64 = 200;
+/// Accepted band of the mean NEES over its degrees of freedom.
+const NEES_BAND: (f64, f64) = (0.7, 1.5);
+
+fn matrix3(rows: &[Vec<f64>]) -> Matrix3<f64> {
+    Matrix3::from_fn(|r, c| rows[r][c])
+}
+
+fn matrix2(rows: &[Vec<f64>]) -> Matrix2<f64> {
+    Matrix2::from_fn(|r, c| rows[r][c])
+}
+
+/// NEES of the rotation (left increment `R_true = exp(phi) R_est`) and of the translation
+/// direction (the true direction's components in the tangent basis at the estimate).
+fn nees(rel: &RelativePose, truth: &nalgebra::Isometry3<f64>) -> (f64, f64) {
+    let u = &rel.quality.uncertainty;
+    let c_r = matrix3(u.rotation_covariance.as_ref().expect("rotation covariance"));
+    let c_t = matrix2(
+        u.translation_direction_covariance
+            .as_ref()
+            .expect("direction covariance"),
+    );
+    let r_err: Rotation3<f64> =
+        truth.rotation.to_rotation_matrix() * rel.rotation.to_rotation_matrix().inverse();
+    let phi = so3_log(&r_err);
+    let t_true = truth.translation.vector.normalize();
+    let (b1, b2) = tangent_basis(&rel.translation);
+    let e = Vector2::new(b1.dot(&t_true), b2.dot(&t_true));
+    let inv_r = c_r.try_inverse().expect("invertible rotation covariance");
+    let inv_t = c_t.try_inverse().expect("invertible direction covariance");
+    (
+        (phi.transpose() * inv_r * phi)[0],
+        (e.transpose() * inv_t * e)[0],
+    )
+}
+
+/// Mean of `values` without its largest `share` (rounded up).
+fn trimmed_mean(values: &mut [f64], share: f64) -> f64 {
+    values.sort_by(f64::total_cmp);
+    let keep = values.len() - (share * values.len() as f64).ceil() as usize;
+    values[..keep].iter().sum::<f64>() / keep as f64
+}
+
+/// Mean NEES over degrees of freedom of rotation and translation direction over [`SEEDS`]
+/// general scenes of 200 correspondences at `noise` pixels: (plain means, means without the
+/// largest 1%).
+fn calibration(noise: f64) -> ((f64, f64), (f64, f64)) {
+    let (mut rot, mut dir) = (Vec::new(), Vec::new());
+    for seed in 0..SEEDS {
+        let scene = common::make_scene(seed, 200, 0.0, noise, false);
+        let rel = estimate_relative_pose(
+            &scene.u1,
+            &scene.u2,
+            &common::camera(),
+            &RelativePoseConfig::default(),
+        )
+        .expect("a general scene has a pose");
+        assert!(!rel.pure_rotation, "seed {seed}");
+        let (r, t) = nees(&rel, &scene.pose);
+        rot.push(r / 3.0);
+        dir.push(t / 2.0);
+    }
+    let mean = |v: &[f64]| v.iter().sum::<f64>() / v.len() as f64;
+    let plain = (mean(&rot), mean(&dir));
+    let trimmed = (trimmed_mean(&mut rot, 0.01), trimmed_mean(&mut dir, 0.01));
+    println!(
+        "noise {noise} px: mean NEES/dof rotation {:.3}, direction {:.3}; without the largest 1%: {:.3}, {:.3}",
+        plain.0, plain.1, trimmed.0, trimmed.1
+    );
+    (plain, trimmed)
+}
+
+fn assert_in_band(noise: f64, what: &str, (rot, dir): (f64, f64)) {
+    for (name, m) in [("rotation", rot), ("direction", dir)] {
+        assert!(
+            (NEES_BAND.0..=NEES_BAND.1).contains(&m),
+            "noise {noise} px, {what}: {name} NEES/dof {m}"
+        );
+    }
+}
+
+#[test]
+fn covariance_is_calibrated_at_known_pixel_noise() {
+    for noise in [0.5, 1.0] {
+        let (plain, trimmed) = calibration(noise);
+        assert_in_band(noise, "mean", plain);
+        assert_in_band(noise, "trimmed mean", trimmed);
+    }
+    // At 2 px the refinement lands a few seeds (one in 200) in a wrong basin, tens of sigmas
+    // off, which no local covariance describes; the bulk is checked without the largest 1%.
+    let (_, trimmed) = calibration(2.0);
+    assert_in_band(2.0, "trimmed mean", trimmed);
+}
+
+#[test]
+fn good_scenes_are_ok_with_sigmas() {
+    for seed in 0..20 {
+        let scene = common::make_scene(seed, 200, 0.3, 0.5, false);
+        let rel = estimate_relative_pose(
+            &scene.u1,
+            &scene.u2,
+            &common::camera(),
+            &RelativePoseConfig::default(),
+        )
+        .expect("pose");
+        let q = &rel.quality;
+        if rel.low_parallax {
+            assert!(q.reasons.contains(&Reason::LowParallax));
+            continue;
+        }
+        assert_eq!(q.verdict, Verdict::Ok, "seed {seed}: {:?}", q.reasons);
+        assert!(q.support.log10_nfa.expect("chance test") < -20.0);
+        let (rot, dir) = (
+            q.uncertainty.rotation_sigma_deg.expect("rotation sigma"),
+            q.uncertainty
+                .translation_direction_sigma_deg
+                .expect("direction sigma"),
+        );
+        assert!(
+            rot > 0.0 && rot < 1.0 && dir > 0.0 && dir < 10.0,
+            "{rot} {dir}"
+        );
+        // The noise scale within a factor of two of the truth (the NEES test checks it closely
+        // on average).
+        assert!(
+            q.sigma > 0.25 && q.sigma < 1.0,
+            "seed {seed}: noise scale {}",
+            q.sigma
+        );
+    }
+}
+
+#[test]
+fn random_correspondences_are_never_ok() {
+    for seed in 0..5 {
+        let mut rng = StdRng::seed_from_u64(seed);
+        let mut point = || Vector2::new(rng.random_range(0.0..640.0), rng.random_range(0.0..480.0));
+        let x1: Vec<_> = (0..300).map(|_| point()).collect();
+        let x2: Vec<_> = (0..300).map(|_| point()).collect();
+        match estimate_relative_pose(&x1, &x2, &common::camera(), &RelativePoseConfig::default()) {
+            Err(_) => {}
+            Ok(rel) => {
+                assert_eq!(
+                    rel.quality.verdict,
+                    Verdict::Failed,
+                    "seed {seed}: {:?}",
+                    rel.quality
+                );
+                assert!(
+                    rel.quality.reasons.contains(&Reason::NotBetterThanChance)
+                        || rel.quality.reasons.contains(&Reason::TooFewInliers),
+                    "seed {seed}: {:?}",
+                    rel.quality.reasons
+                );
+            }
+        }
+    }
+}
+
+#[test]
+fn five_matches_are_never_ok() {
+    let scene = common::make_scene(3, 5, 0.0, 0.5, false);
+    match estimate_relative_pose(
+        &scene.u1,
+        &scene.u2,
+        &common::camera(),
+        &RelativePoseConfig::default(),
+    ) {
+        Err(_) => {}
+        Ok(rel) => {
+            assert_eq!(rel.quality.verdict, Verdict::Failed);
+            assert!(rel.quality.reasons.contains(&Reason::TooFewInliers));
+        }
+    }
+}
+
+#[test]
+fn pure_rotation_is_flagged_unreliable_with_an_accurate_rotation() {
+    let mut rng = StdRng::seed_from_u64(11);
+    let mut pose = common::random_pose(&mut rng, 0.2, 0.0);
+    pose.translation.vector.fill(0.0);
+    let scene = common::make_scene_with_pose(11, pose, 200, 0.2, 0.5, false);
+    let rel = estimate_relative_pose(
+        &scene.u1,
+        &scene.u2,
+        &common::camera(),
+        &RelativePoseConfig::default(),
+    )
+    .expect("pose");
+    assert!(rel.pure_rotation);
+    assert_eq!(rel.quality.verdict, Verdict::Unreliable);
+    assert!(rel.quality.reasons.contains(&Reason::PureRotation));
+    assert!(rel.rotation.angle_to(&pose.rotation).to_degrees() < 0.2);
+}
