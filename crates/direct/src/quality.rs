@@ -67,11 +67,13 @@ impl TranslationResult {
     /// sum to `variances` ([`intensity_variance`]); `sigma` is the RMS residual, grey levels.
     pub fn quality(&self, image_pixels: usize, variances: f64, cfg: &QualityConfig) -> Quality {
         let pixels = (self.used_fraction * image_pixels as f64).round() as usize;
-        let cov = &self.covariance;
-        let uncertainty = Uncertainty {
-            covariance: Some(block_rows(|r, c| cov[(r, c)], 0, 2)),
-            shift_sigma_px: Some((cov[(0, 0)] + cov[(1, 1)]).max(0.0).sqrt()),
-            ..Uncertainty::default()
+        let uncertainty = match &self.covariance {
+            Some(cov) => Uncertainty {
+                covariance: Some(block_rows(|r, c| cov[(r, c)], 0, 2)),
+                shift_sigma_px: Some((cov[(0, 0)] + cov[(1, 1)]).max(0.0).sqrt()),
+                ..Uncertainty::default()
+            },
+            None => Uncertainty::default(),
         };
         Quality::judge(
             pixel_support(pixels, image_pixels),
@@ -89,9 +91,11 @@ impl WarpResult {
     /// Quality of an affine or homography warp, as [`TranslationResult::quality`].
     pub fn quality(&self, image_pixels: usize, variances: f64, cfg: &QualityConfig) -> Quality {
         let pixels = (self.used_fraction * image_pixels as f64).round() as usize;
-        let k = self.covariance.nrows();
         let uncertainty = Uncertainty {
-            covariance: Some(block_rows(|r, c| self.covariance[(r, c)], 0, k)),
+            covariance: self
+                .covariance
+                .as_ref()
+                .map(|cov| block_rows(|r, c| cov[(r, c)], 0, cov.nrows())),
             ..Uncertainty::default()
         };
         Quality::judge(
@@ -111,16 +115,17 @@ impl Se3Result {
     /// `variances` is `var(I_ref) + var(I_cur)`. Covariance of `(rho, phi)` (metres, radians);
     /// `sigma` is the robust residual scale, grey levels.
     pub fn quality(&self, reference_pixels: usize, variances: f64, cfg: &QualityConfig) -> Quality {
-        let cov = &self.covariance;
-        let all = block_rows(|r, c| cov[(r, c)], 0, 6);
-        let uncertainty = Uncertainty {
-            translation_sigma_m: Some(rms_of(&block_rows(|r, c| cov[(r, c)], 0, 3), 1.0)),
-            rotation_sigma_deg: Some(rms_of(
-                &block_rows(|r, c| cov[(r, c)], 3, 3),
-                1f64.to_degrees(),
-            )),
-            covariance: Some(all),
-            ..Uncertainty::default()
+        let uncertainty = match &self.covariance {
+            Some(cov) => Uncertainty {
+                translation_sigma_m: Some(rms_of(&block_rows(|r, c| cov[(r, c)], 0, 3), 1.0)),
+                rotation_sigma_deg: Some(rms_of(
+                    &block_rows(|r, c| cov[(r, c)], 3, 3),
+                    1f64.to_degrees(),
+                )),
+                covariance: Some(block_rows(|r, c| cov[(r, c)], 0, 6)),
+                ..Uncertainty::default()
+            },
+            None => Uncertainty::default(),
         };
         let support = Support {
             pixels: Some(self.valid_pixels),
