@@ -62,17 +62,31 @@ pub fn load_gray(path: &Path) -> Result<GrayImage, InputError> {
     Ok(open(path)?.into_luma8())
 }
 
-/// Loads a depth PNG and divides by `scale` (5000 per metre for TUM) into metres.
+/// Loads a depth PNG and divides the stored values by `scale` (depth units per metre) into
+/// metres: `z = raw / scale`, 0 stays 0 (no depth).
+///
+/// 16-bit and 8-bit single-channel images are both read as stored: an 8-bit value `v` is
+/// `v / scale` metres, never widened to 16 bits first (which would multiply it by 257). The
+/// scale is the caller's: TUM stores 5000 units per metre, a 16-bit millimetre map is 1000,
+/// an 8-bit map is whatever its writer chose (e.g. 25 for 4 cm steps up to 10.2 m).
 pub fn load_depth(path: &Path, scale: f64) -> Result<DepthMap, InputError> {
-    let img = open(path)?;
-    let raw = match img {
-        image::DynamicImage::ImageLuma16(d) => d,
-        image::DynamicImage::ImageLuma8(_) => img.into_luma16(),
+    let metres = |raw: &mut dyn Iterator<Item = f64>| -> Vec<f32> {
+        raw.map(|d| (d / scale) as f32).collect()
+    };
+    let (width, height, values) = match open(path)? {
+        image::DynamicImage::ImageLuma16(d) => (
+            d.width(),
+            d.height(),
+            metres(&mut d.iter().map(|&v| f64::from(v))),
+        ),
+        image::DynamicImage::ImageLuma8(d) => (
+            d.width(),
+            d.height(),
+            metres(&mut d.iter().map(|&v| f64::from(v))),
+        ),
         _ => return Err(InputError::DepthFormat { path: path.into() }),
     };
-    let metres = raw.pixels().map(|p| (p[0] as f64 / scale) as f32).collect();
-    Ok(DepthMap::from_raw(raw.width(), raw.height(), metres)
-        .expect("same size as the decoded image"))
+    Ok(DepthMap::from_raw(width, height, values).expect("one value per decoded pixel"))
 }
 
 /// Pixel correspondences `(x1, y1) <-> (x2, y2)`.
