@@ -136,3 +136,34 @@ pub fn load_correspondences(path: &Path) -> Result<Correspondences, InputError> 
     }
     Ok(out)
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn depth_is_divided_by_the_scale_as_stored_in_8_and_16_bits() {
+        let dir = std::env::temp_dir().join(format!("vofront-input-depth-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let (p8, p16) = (dir.join("d8.png"), dir.join("d16.png"));
+        GrayImage::from_fn(3, 2, |x, _| Luma([x as u8 * 50]))
+            .save(&p8)
+            .unwrap();
+        ImageBuffer::<Luma<u16>, Vec<u16>>::from_fn(3, 2, |x, _| Luma([x as u16 * 5000]))
+            .save(&p16)
+            .unwrap();
+        // 8-bit 50 at 25 units per metre is 2 m (not 50 * 257 / 25).
+        let d8 = load_depth(&p8, 25.0).unwrap();
+        assert_eq!(d8.as_raw(), &[0.0, 2.0, 4.0, 0.0, 2.0, 4.0]);
+        let d16 = load_depth(&p16, 5000.0).unwrap();
+        assert_eq!(d16.as_raw(), &[0.0, 1.0, 2.0, 0.0, 1.0, 2.0]);
+        image::RgbImage::new(2, 2)
+            .save(dir.join("rgb.png"))
+            .unwrap();
+        assert!(matches!(
+            load_depth(&dir.join("rgb.png"), 1.0),
+            Err(InputError::DepthFormat { .. })
+        ));
+        std::fs::remove_dir_all(&dir).ok();
+    }
+}

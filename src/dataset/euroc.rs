@@ -220,3 +220,41 @@ fn read_ground_truth(path: &Path) -> Result<Trajectory, DatasetError> {
         .collect::<Result<Vec<_>, _>>()?;
     Ok(Trajectory::new(poses))
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use nalgebra::Vector3;
+
+    #[test]
+    fn camera_ground_truth_applies_t_bs_to_the_body_poses() {
+        let t_wb = Isometry3::new(Vector3::new(1.0, 2.0, 3.0), Vector3::new(0.1, -0.2, 0.3));
+        let t_bc = Isometry3::new(
+            Vector3::new(-0.02, -0.06, 0.01),
+            Vector3::new(0.0, 0.0, 1.5),
+        );
+        let mut data = Dataset {
+            kind: DatasetKind::Euroc,
+            root: "x".into(),
+            frames: Vec::new(),
+            camera: None,
+            depth_scale: None,
+            ground_truth: Some(Trajectory::new(vec![(5.0, t_wb)])),
+            ground_truth_tolerance: 0.02,
+            camera_in_body: Some(t_bc),
+        };
+        let cam = data.camera_ground_truth().unwrap();
+        // A point at the camera centre lands on the camera's world position T_wb * t_bc.
+        let centre = cam.poses[0].1 * nalgebra::Point3::origin();
+        assert!((centre - t_wb * nalgebra::Point3::from(t_bc.translation.vector)).norm() < 1e-12);
+        assert!(
+            cam.poses[0]
+                .1
+                .rotation
+                .angle_to(&(t_wb.rotation * t_bc.rotation))
+                < 1e-12
+        );
+        data.camera_in_body = None;
+        assert_eq!(data.camera_ground_truth(), data.ground_truth);
+    }
+}
