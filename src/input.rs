@@ -63,30 +63,32 @@ pub fn load_gray(path: &Path) -> Result<GrayImage, InputError> {
 }
 
 /// Loads a depth PNG and divides the stored values by `scale` (depth units per metre) into
-/// metres: `z = raw / scale`, 0 stays 0 (no depth).
-///
-/// 16-bit and 8-bit single-channel images are both read as stored: an 8-bit value `v` is
-/// `v / scale` metres, never widened to 16 bits first (which would multiply it by 257). The
-/// scale is the caller's: TUM stores 5000 units per metre, a 16-bit millimetre map is 1000,
-/// an 8-bit map is whatever its writer chose (e.g. 25 for 4 cm steps up to 10.2 m).
+/// metres, see [`depth_in_metres`].
 pub fn load_depth(path: &Path, scale: f64) -> Result<DepthMap, InputError> {
+    depth_in_metres(&open(path)?, scale)
+        .ok_or_else(|| InputError::DepthFormat { path: path.into() })
+}
+
+/// A decoded depth image in metres: `z = raw / scale` with `scale` the depth units per metre;
+/// 0 stays 0 (no depth). `None` unless the image is single-channel 8-bit or 16-bit.
+///
+/// Both bit depths are read as stored: an 8-bit value `v` is `v / scale` metres, never
+/// widened to 16 bits first (which would multiply it by 257). The scale is the caller's: TUM
+/// stores 5000 units per metre, a 16-bit millimetre map is 1000, an 8-bit map is whatever its
+/// writer chose (e.g. 25 for 4 cm steps up to 10.2 m).
+pub fn depth_in_metres(image: &image::DynamicImage, scale: f64) -> Option<DepthMap> {
     let metres = |raw: &mut dyn Iterator<Item = f64>| -> Vec<f32> {
         raw.map(|d| (d / scale) as f32).collect()
     };
-    let (width, height, values) = match open(path)? {
-        image::DynamicImage::ImageLuma16(d) => (
-            d.width(),
-            d.height(),
-            metres(&mut d.iter().map(|&v| f64::from(v))),
-        ),
-        image::DynamicImage::ImageLuma8(d) => (
-            d.width(),
-            d.height(),
-            metres(&mut d.iter().map(|&v| f64::from(v))),
-        ),
-        _ => return Err(InputError::DepthFormat { path: path.into() }),
+    let values = match image {
+        image::DynamicImage::ImageLuma16(d) => metres(&mut d.iter().map(|&v| f64::from(v))),
+        image::DynamicImage::ImageLuma8(d) => metres(&mut d.iter().map(|&v| f64::from(v))),
+        _ => return None,
     };
-    Ok(DepthMap::from_raw(width, height, values).expect("one value per decoded pixel"))
+    Some(
+        DepthMap::from_raw(image.width(), image.height(), values)
+            .expect("one value per decoded pixel"),
+    )
 }
 
 /// Pixel correspondences `(x1, y1) <-> (x2, y2)`.

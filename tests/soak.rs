@@ -27,9 +27,10 @@ const RECOVERY_FRAMES: usize = 10;
 /// tracker: a camera step is about 1 cm (5 cm across a dropped-frame gap) and photometric
 /// alignment at 160x120 is sub-pixel, i.e. millimetres at 2-6 m depth.
 const DIRECT_STEP_ERROR_M: f64 = 0.01;
-/// The same for the ORB + PnP tracker: keypoints are pixel-accurate, and one pixel at
-/// f = 131 px (160x120) is 1.5-4.5 cm at 2-6 m depth, shared over dozens of inliers.
-const FEATURE_STEP_ERROR_M: f64 = 0.03;
+/// The same for the ORB + PnP tracker: keypoints are pixel-accurate, one pixel at f = 131 px
+/// (160x120) is 1.5-4.5 cm at 2-6 m depth, averaged over at least 25 inliers per pose and
+/// counted twice per step (both poses are estimated against the keyframe).
+const FEATURE_STEP_ERROR_M: f64 = 0.05;
 /// Largest growth of the resident set from the first quarter of the run to its end, kB:
 /// the per-frame records and poses (a few hundred bytes each) plus allocator slack; leaking
 /// one 160x120 image per frame would exceed it within a hundred frames.
@@ -186,13 +187,15 @@ fn check(name: &str, soak: &Soak, o: &Outcome, demands: &Demands) {
             let error = (truth.inverse() * est).translation.vector.norm();
             assert!(
                 error < max_step_error_m,
-                "{name}: frame {} moved {error} m off the truth",
-                pair[1].index
+                "{name}: frame {} moved {error} m off the truth ({:?} then {:?})",
+                pair[1].index,
+                a.status,
+                b.status
             );
             worst_step = worst_step.max(error);
         }
+        println!("{name}: worst frame-to-frame motion error {worst_step:.4} m");
     }
-    println!("{name}: worst frame-to-frame motion error {worst_step:.4} m");
     if let (Some(quarter), Some(max)) = (o.rss_quarter_kb, o.rss_max_kb) {
         assert!(
             max <= quarter + MAX_RSS_GROWTH_KB,
