@@ -62,17 +62,33 @@ pub fn load_gray(path: &Path) -> Result<GrayImage, InputError> {
     Ok(open(path)?.into_luma8())
 }
 
-/// Loads a depth PNG and divides by `scale` (5000 per metre for TUM) into metres.
+/// Loads a depth PNG and divides the stored values by `scale` (depth units per metre) into
+/// metres, see [`depth_in_metres`].
 pub fn load_depth(path: &Path, scale: f64) -> Result<DepthMap, InputError> {
-    let img = open(path)?;
-    let raw = match img {
-        image::DynamicImage::ImageLuma16(d) => d,
-        image::DynamicImage::ImageLuma8(_) => img.into_luma16(),
-        _ => return Err(InputError::DepthFormat { path: path.into() }),
+    depth_in_metres(&open(path)?, scale)
+        .ok_or_else(|| InputError::DepthFormat { path: path.into() })
+}
+
+/// A decoded depth image in metres: `z = raw / scale` with `scale` the depth units per metre;
+/// 0 stays 0 (no depth). `None` unless the image is single-channel 8-bit or 16-bit.
+///
+/// Both bit depths are read as stored: an 8-bit value `v` is `v / scale` metres, never
+/// widened to 16 bits first (which would multiply it by 257). The scale is the caller's: TUM
+/// stores 5000 units per metre, a 16-bit millimetre map is 1000, an 8-bit map is whatever its
+/// writer chose (e.g. 25 for 4 cm steps up to 10.2 m).
+pub fn depth_in_metres(image: &image::DynamicImage, scale: f64) -> Option<DepthMap> {
+    let metres = |raw: &mut dyn Iterator<Item = f64>| -> Vec<f32> {
+        raw.map(|d| (d / scale) as f32).collect()
     };
-    let metres = raw.pixels().map(|p| (p[0] as f64 / scale) as f32).collect();
-    Ok(DepthMap::from_raw(raw.width(), raw.height(), metres)
-        .expect("same size as the decoded image"))
+    let values = match image {
+        image::DynamicImage::ImageLuma16(d) => metres(&mut d.iter().map(|&v| f64::from(v))),
+        image::DynamicImage::ImageLuma8(d) => metres(&mut d.iter().map(|&v| f64::from(v))),
+        _ => return None,
+    };
+    Some(
+        DepthMap::from_raw(image.width(), image.height(), values)
+            .expect("one value per decoded pixel"),
+    )
 }
 
 /// Pixel correspondences `(x1, y1) <-> (x2, y2)`.
@@ -121,4 +137,35 @@ pub fn load_correspondences(path: &Path) -> Result<Correspondences, InputError> 
         header_allowed = false;
     }
     Ok(out)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn depth_is_divided_by_the_scale_as_stored_in_8_and_16_bits() {
+        let dir = std::env::temp_dir().join(format!("vofront-input-depth-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let (p8, p16) = (dir.join("d8.png"), dir.join("d16.png"));
+        GrayImage::from_fn(3, 2, |x, _| Luma([x as u8 * 50]))
+            .save(&p8)
+            .unwrap();
+        ImageBuffer::<Luma<u16>, Vec<u16>>::from_fn(3, 2, |x, _| Luma([x as u16 * 5000]))
+            .save(&p16)
+            .unwrap();
+        // 8-bit 50 at 25 units per metre is 2 m (not 50 * 257 / 25).
+        let d8 = load_depth(&p8, 25.0).unwrap();
+        assert_eq!(d8.as_raw(), &[0.0, 2.0, 4.0, 0.0, 2.0, 4.0]);
+        let d16 = load_depth(&p16, 5000.0).unwrap();
+        assert_eq!(d16.as_raw(), &[0.0, 1.0, 2.0, 0.0, 1.0, 2.0]);
+        image::RgbImage::new(2, 2)
+            .save(dir.join("rgb.png"))
+            .unwrap();
+        assert!(matches!(
+            load_depth(&dir.join("rgb.png"), 1.0),
+            Err(InputError::DepthFormat { .. })
+        ));
+        std::fs::remove_dir_all(&dir).ok();
+    }
 }

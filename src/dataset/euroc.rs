@@ -8,9 +8,10 @@
 //!
 //! Ground truth, optional: `mav0/state_groundtruth_estimate0/data.csv`, lines
 //! `t [ns], px, py, pz, qw, qx, qy, qz, ...` (further columns ignored). It is the pose of the
-//! **body (IMU) frame**, `T_wb`, exposed as published; the camera pose is `T_wb * T_bs`
-//! with `T_BS` of `cam0/sensor.yaml` (exposed as [`Dataset::camera_in_body`]), which this
-//! reader does not apply.
+//! **body (IMU) frame**, `T_wb`, exposed as published in [`Dataset::ground_truth`]; the camera
+//! pose is `T_wc = T_wb T_bs` with `T_BS` of `cam0/sensor.yaml` (exposed as
+//! [`Dataset::camera_in_body`]). Evaluate a camera trajectory against
+//! [`Dataset::camera_ground_truth`], which applies it.
 
 use std::path::Path;
 
@@ -22,6 +23,22 @@ use crate::trajectory::{data_lines, parse_numbers, Trajectory};
 
 /// Tolerance on `|R^T R - I|` for the rotation block of `T_BS` (published to ~1e-6).
 const ROTATION_TOLERANCE: f64 = 1e-3;
+
+impl Dataset {
+    /// The ground truth as camera poses `T_wc`, the frame a tracker's trajectory is in: for
+    /// EuRoC the published body poses times `T_BS`, `T_wc = T_wb T_bc`
+    /// ([`Dataset::camera_in_body`]); for TUM and KITTI the ground truth as published (already
+    /// camera poses). `None` without ground truth.
+    pub fn camera_ground_truth(&self) -> Option<Trajectory> {
+        let gt = self.ground_truth.as_ref()?;
+        Some(match self.camera_in_body {
+            Some(t_bc) => {
+                Trajectory::new(gt.poses.iter().map(|(t, t_wb)| (*t, t_wb * t_bc)).collect())
+            }
+            None => gt.clone(),
+        })
+    }
+}
 
 /// Opens a EuRoC MAV folder (the one holding `mav0/`; see the module documentation).
 pub fn open(root: &Path, config: &DatasetConfig) -> Result<Dataset, DatasetError> {
@@ -202,4 +219,42 @@ fn read_ground_truth(path: &Path) -> Result<Trajectory, DatasetError> {
         })
         .collect::<Result<Vec<_>, _>>()?;
     Ok(Trajectory::new(poses))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use nalgebra::Vector3;
+
+    #[test]
+    fn camera_ground_truth_applies_t_bs_to_the_body_poses() {
+        let t_wb = Isometry3::new(Vector3::new(1.0, 2.0, 3.0), Vector3::new(0.1, -0.2, 0.3));
+        let t_bc = Isometry3::new(
+            Vector3::new(-0.02, -0.06, 0.01),
+            Vector3::new(0.0, 0.0, 1.5),
+        );
+        let mut data = Dataset {
+            kind: DatasetKind::Euroc,
+            root: "x".into(),
+            frames: Vec::new(),
+            camera: None,
+            depth_scale: None,
+            ground_truth: Some(Trajectory::new(vec![(5.0, t_wb)])),
+            ground_truth_tolerance: 0.02,
+            camera_in_body: Some(t_bc),
+        };
+        let cam = data.camera_ground_truth().unwrap();
+        // A point at the camera centre lands on the camera's world position T_wb * t_bc.
+        let centre = cam.poses[0].1 * nalgebra::Point3::origin();
+        assert!((centre - t_wb * nalgebra::Point3::from(t_bc.translation.vector)).norm() < 1e-12);
+        assert!(
+            cam.poses[0]
+                .1
+                .rotation
+                .angle_to(&(t_wb.rotation * t_bc.rotation))
+                < 1e-12
+        );
+        data.camera_in_body = None;
+        assert_eq!(data.camera_ground_truth(), data.ground_truth);
+    }
 }

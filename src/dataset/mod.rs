@@ -109,7 +109,7 @@ pub enum DatasetError {
         /// The decoder error.
         source: image::ImageError,
     },
-    /// A depth map is not a single-channel 16-bit image or does not match the image size.
+    /// A depth map is not a single-channel 16-bit or 8-bit image or does not match the image size.
     #[error("frame {index}: {path}: {message}")]
     BadDepth {
         /// Frame index.
@@ -279,28 +279,21 @@ impl Dataset {
             path: path.to_path_buf(),
             message,
         };
-        let raw = match open_image(index, path)? {
-            DynamicImage::ImageLuma16(raw) => raw,
-            other => {
-                return Err(bad(format!(
-                    "expected 16-bit grey, got {:?}",
-                    other.color()
-                )))
-            }
-        };
-        if raw.dimensions() != size {
+        let raw = open_image(index, path)?;
+        let depth = crate::input::depth_in_metres(&raw, self.depth_scale.unwrap_or(1.0))
+            .ok_or_else(|| {
+                bad(format!(
+                    "expected 16-bit or 8-bit grey, got {:?}",
+                    raw.color()
+                ))
+            })?;
+        if depth.dimensions() != size {
             return Err(bad(format!(
                 "depth is {:?}, image is {size:?}",
-                raw.dimensions()
+                depth.dimensions()
             )));
         }
-        let scale = self.depth_scale.unwrap_or(1.0);
-        let metres = raw
-            .as_raw()
-            .iter()
-            .map(|&d| (d as f64 / scale) as f32)
-            .collect();
-        Ok(DepthImage::from_raw(size.0, size.1, metres).expect("same size as the 16-bit depth"))
+        Ok(depth)
     }
 }
 

@@ -5,7 +5,10 @@
 //! image at `pi(K T_cur_kf' P_kf)` with the constant-velocity guess `T_cur_kf'`; each is
 //! matched only to current features within `window_px` of that prediction (brute force when
 //! too few are found, after a jump), and PnP estimates `T_cur_kf` from the matches, so that
-//! `T_wc = T_w_kf T_cur_kf^-1`.
+//! `T_wc = T_w_kf T_cur_kf^-1`. The matching and PnP are then repeated once around that
+//! estimate: when the guess is several frames off (dropped frames make the constant velocity
+//! overshoot), the first window picks wrong neighbours and PnP can settle 10 cm away with
+//! hundreds of consistent-looking inliers; matching around the estimate removes them.
 
 use std::time::Instant;
 
@@ -165,8 +168,12 @@ impl Tracker for FeatureRgbdTracker {
             pnp: &self.cfg.pnp,
             min_inliers: self.cfg.min_inliers,
         };
-        let Located { matches, fit, .. } =
-            locator.locate(&kf.features, &kf.points, &features, prior);
+        let first = locator.locate(&kf.features, &kf.points, &features, prior);
+        // Second pass around the first estimate (see the module documentation).
+        let Located { matches, fit, .. } = match &first.fit {
+            Ok(f) => locator.locate(&kf.features, &kf.points, &features, f.pose),
+            Err(_) => first,
+        };
         let fit = match fit {
             Ok(fit) => fit,
             Err(why) => {

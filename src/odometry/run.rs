@@ -1,7 +1,17 @@
-//! Drives a [`Tracker`] over a dataset and collects the trajectory and per-frame scores.
+//! Drives a [`Tracker`] over a dataset, streaming each frame's record to a [`FrameSink`] as
+//! soon as the frame is tracked, and stopping cleanly between frames when asked.
+//!
+//! [`run_with`] is the full form: a [`RunControl`] (frame limit, stop flag) and a sink that
+//! sees every record before the next frame is read, so that an interrupted or crashed run
+//! leaves every completed frame on disk ([`TumSink`], [`MetricsCsvSink`], flushed per frame).
+//! [`run`] is the simple form: everything in memory, with a progress callback.
 
+use std::convert::Infallible;
 use std::io::{self, Write};
 use std::path::Path;
+use std::sync::atomic::{AtomicBool, Ordering};
+
+use thiserror::Error;
 
 use super::{FrameEstimate, TrackStatus, Tracker};
 use crate::dataset::Dataset;
@@ -18,6 +28,17 @@ pub struct FrameRecord {
     pub estimate: Result<FrameEstimate, String>,
 }
 
+impl FrameRecord {
+    /// The camera-to-world pose `T_wc` that belongs in the trajectory: tracked frames only
+    /// (ok or reinitialised), `None` for lost and unreadable frames.
+    pub fn trajectory_pose(&self) -> Option<nalgebra::Isometry3<f64>> {
+        match &self.estimate {
+            Ok(e) if e.status != TrackStatus::Lost => Some(e.pose_wc),
+            _ => None,
+        }
+    }
+}
+
 /// Counts over a run.
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
 pub struct RunSummary {
@@ -31,8 +52,10 @@ pub struct RunSummary {
     pub reinitialised: usize,
     /// Keyframes taken.
     pub keyframes: usize,
-    /// Mean tracking time of the frames that were read, milliseconds.
+    /// Mean tracking time of the frames that were read, milliseconds (0 when none was read).
     pub mean_ms: f64,
+    /// The stop flag ended the run before the last frame.
+    pub interrupted: bool,
 }
 
 impl RunSummary {
@@ -45,9 +68,14 @@ impl RunSummary {
                 .iter()
                 .all(|r| !matches!(&r.estimate, Ok(e) if e.status != TrackStatus::Lost))
     }
+
+    /// Frames per second of tracking time (`1000 / mean_ms`), `None` when no frame was read.
+    pub fn frames_per_second(&self) -> Option<f64> {
+        (self.frames > self.unreadable && self.mean_ms > 0.0).then(|| 1e3 / self.mean_ms)
+    }
 }
 
-/// The result of [`run`].
+/// The result of [`run`] and [`run_with`].
 #[derive(Debug, Clone, Default)]
 pub struct RunOutput {
     /// Poses of the frames that were tracked (ok or reinitialised), camera-to-world.
@@ -58,8 +86,230 @@ pub struct RunOutput {
     pub summary: RunSummary,
 }
 
-/// Tracks the first `max_frames` frames of `dataset` (all when `None`), calling
-/// `progress(done, total)` after each. Unreadable frames are recorded and skipped.
+/// Receives each frame's record as soon as the frame has been tracked (or found unreadable),
+/// in frame order, before the next frame is read. Implemented for closures
+/// `FnMut(&FrameRecord) -> io::Result<()>`, for `Option<S>` (nothing when `None`) and for
+/// pairs, so sinks compose: `(tum, (metrics, progress))`.
+pub trait FrameSink {
+    /// Takes one record; an error stops the run ([`RunError::Sink`]).
+    fn frame(&mut self, record: &FrameRecord) -> io::Result<()>;
+}
+
+impl<F: FnMut(&FrameRecord) -> io::Result<()>> FrameSink for F {
+    fn frame(&mut self, record: &FrameRecord) -> io::Result<()> {
+        self(record)
+    }
+}
+
+impl<S: FrameSink> FrameSink for Option<S> {
+    fn frame(&mut self, record: &FrameRecord) -> io::Result<()> {
+        self.as_mut().map_or(Ok(()), |s| s.frame(record))
+    }
+}
+
+impl<A: FrameSink, B: FrameSink> FrameSink for (A, B) {
+    fn frame(&mut self, record: &FrameRecord) -> io::Result<()> {
+        self.0.frame(record)?;
+        self.1.frame(record)
+    }
+}
+
+/// Writes the tracked frames as TUM trajectory lines (`t tx ty tz qx qy qz qw`, see
+/// [`Trajectory::to_tum_string`]), flushed after every line: what is on disk is always a
+/// valid TUM file of every tracked frame so far.
+#[derive(Debug)]
+pub struct TumSink<W: Write> {
+    out: W,
+}
+
+impl<W: Write> TumSink<W> {
+    /// A sink writing into `out` (typically a `BufWriter<File>`).
+    pub fn new(out: W) -> Self {
+        Self { out }
+    }
+}
+
+impl<W: Write> FrameSink for TumSink<W> {
+    fn frame(&mut self, record: &FrameRecord) -> io::Result<()> {
+        if let Some(pose) = record.trajectory_pose() {
+            let line = Trajectory::new(vec![(record.timestamp, pose)]).to_tum_string();
+            self.out.write_all(line.as_bytes())?;
+            self.out.flush()?;
+        }
+        Ok(())
+    }
+}
+
+/// The columns of the per-frame metrics CSV, in order ([`metrics_row`] gives the values).
+/// `status` is `ok`, `lost`, `reinitialised` or `unreadable`; `message` says why a frame was
+/// lost, reinitialised or unreadable (commas and newlines replaced by `;`).
+pub const METRICS_COLUMNS: [&str; 11] = [
+    "index",
+    "timestamp",
+    "status",
+    "keyframe",
+    "inliers",
+    "inlier_ratio",
+    "rmse",
+    "iterations",
+    "covariance_trace",
+    "ms",
+    "message",
+];
+
+/// The CSV header line of [`METRICS_COLUMNS`] (without newline).
+pub fn metrics_header() -> String {
+    METRICS_COLUMNS.join(",")
+}
+
+/// One CSV line (without newline) for `record`, one field per [`METRICS_COLUMNS`] entry.
+pub fn metrics_row(record: &FrameRecord) -> String {
+    let clean = |s: &str| s.replace([',', '\n', '\r'], ";");
+    match &record.estimate {
+        Ok(e) => {
+            let q = &e.quality;
+            format!(
+                "{},{:.6},{},{},{},{:.4},{:.4},{},{},{:.3},{}",
+                record.index,
+                record.timestamp,
+                e.status.as_str(),
+                u8::from(q.keyframe),
+                q.inliers,
+                q.inlier_ratio,
+                q.rmse,
+                q.iterations,
+                q.covariance_trace
+                    .map_or(String::new(), |t| format!("{t:.6e}")),
+                q.ms,
+                clean(e.message.as_deref().unwrap_or(""))
+            )
+        }
+        Err(why) => format!(
+            "{},{:.6},unreadable,0,0,0,0,0,0,0,{}",
+            record.index,
+            record.timestamp,
+            clean(why)
+        ),
+    }
+}
+
+/// Writes the metrics CSV ([`METRICS_COLUMNS`]) one flushed line per frame; the header is
+/// written by [`MetricsCsvSink::new`].
+#[derive(Debug)]
+pub struct MetricsCsvSink<W: Write> {
+    out: W,
+}
+
+impl<W: Write> MetricsCsvSink<W> {
+    /// Writes the header line into `out` and returns the sink.
+    pub fn new(mut out: W) -> io::Result<Self> {
+        writeln!(out, "{}", metrics_header())?;
+        out.flush()?;
+        Ok(Self { out })
+    }
+}
+
+impl<W: Write> FrameSink for MetricsCsvSink<W> {
+    fn frame(&mut self, record: &FrameRecord) -> io::Result<()> {
+        writeln!(self.out, "{}", metrics_row(record))?;
+        self.out.flush()
+    }
+}
+
+/// Writes the metrics CSV of `records` in one go (header, then one line per frame).
+pub fn write_metrics_csv(path: &Path, records: &[FrameRecord]) -> io::Result<()> {
+    let mut sink = MetricsCsvSink::new(io::BufWriter::new(std::fs::File::create(path)?))?;
+    records.iter().try_for_each(|r| sink.frame(r))
+}
+
+/// How [`run_with`] is bounded.
+#[derive(Debug, Clone, Copy, Default)]
+pub struct RunControl<'a> {
+    /// Track only the first `n` frames (all when `None`).
+    pub max_frames: Option<usize>,
+    /// Checked before each frame: once `true`, the run ends after the frame in progress, with
+    /// [`RunSummary::interrupted`] set (e.g. set from a SIGINT/SIGTERM handler).
+    pub stop: Option<&'a AtomicBool>,
+}
+
+/// Why [`run_with`] ended early.
+#[derive(Debug, Error)]
+pub enum RunError {
+    /// The sink could not take the record of frame `index` (e.g. the disk is full); every
+    /// earlier record was taken.
+    #[error("frame {index}: cannot write the result: {source}")]
+    Sink {
+        /// The frame whose record was refused.
+        index: usize,
+        /// The sink's error.
+        source: io::Error,
+    },
+}
+
+/// Tracks the frames of `dataset` allowed by `control`, handing each record to `sink` before
+/// the next frame is read. Unreadable frames are recorded (and sent) and skipped.
+pub fn run_with(
+    dataset: &Dataset,
+    tracker: &mut dyn Tracker,
+    control: &RunControl<'_>,
+    sink: &mut dyn FrameSink,
+) -> Result<RunOutput, RunError> {
+    drive(dataset, tracker, control, |r| sink.frame(r))
+        .map_err(|(index, source)| RunError::Sink { index, source })
+}
+
+/// The loop of [`run_with`] for any sink error type `E`; `Err((frame index, error))`.
+fn drive<E>(
+    dataset: &Dataset,
+    tracker: &mut dyn Tracker,
+    control: &RunControl<'_>,
+    mut sink: impl FnMut(&FrameRecord) -> Result<(), E>,
+) -> Result<RunOutput, (usize, E)> {
+    let total = control
+        .max_frames
+        .map_or(dataset.len(), |m| m.min(dataset.len()));
+    let mut out = RunOutput::default();
+    let mut ms_sum = 0.0;
+    for index in 0..total {
+        if control.stop.is_some_and(|s| s.load(Ordering::SeqCst)) {
+            out.summary.interrupted = true;
+            break;
+        }
+        let record = FrameRecord {
+            index,
+            timestamp: dataset.frames[index].timestamp,
+            estimate: dataset
+                .load(index)
+                .map_err(|e| e.to_string())
+                .map(|frame| tracker.track(&frame)),
+        };
+        let s = &mut out.summary;
+        s.frames += 1;
+        match &record.estimate {
+            Ok(e) => {
+                ms_sum += e.quality.ms;
+                s.keyframes += usize::from(e.quality.keyframe);
+                match e.status {
+                    TrackStatus::Lost => s.lost += 1,
+                    TrackStatus::Reinitialised => s.reinitialised += 1,
+                    TrackStatus::Ok => {}
+                }
+            }
+            Err(_) => s.unreadable += 1,
+        }
+        if let Some(pose) = record.trajectory_pose() {
+            out.trajectory.push(record.timestamp, pose);
+        }
+        sink(&record).map_err(|e| (index, e))?;
+        out.records.push(record);
+    }
+    let read = out.summary.frames - out.summary.unreadable;
+    out.summary.mean_ms = if read > 0 { ms_sum / read as f64 } else { 0.0 };
+    Ok(out)
+}
+
+/// Tracks the first `max_frames` frames of `dataset` (all when `None`) in memory, calling
+/// `progress(done, total)` after each: [`run_with`] without sink or stop flag.
 pub fn run(
     dataset: &Dataset,
     tracker: &mut dyn Tracker,
@@ -67,79 +317,16 @@ pub fn run(
     mut progress: impl FnMut(usize, usize),
 ) -> RunOutput {
     let total = max_frames.map_or(dataset.len(), |m| m.min(dataset.len()));
-    let mut out = RunOutput::default();
-    let mut ms_sum = 0.0;
-    for index in 0..total {
-        let timestamp = dataset.frames[index].timestamp;
-        let estimate = dataset
-            .load(index)
-            .map_err(|e| e.to_string())
-            .map(|frame| tracker.track(&frame));
-        match &estimate {
-            Ok(e) => {
-                ms_sum += e.quality.ms;
-                out.summary.keyframes += usize::from(e.quality.keyframe);
-                match e.status {
-                    TrackStatus::Lost => out.summary.lost += 1,
-                    TrackStatus::Reinitialised => out.summary.reinitialised += 1,
-                    TrackStatus::Ok => {}
-                }
-                if e.status != TrackStatus::Lost {
-                    out.trajectory.push(timestamp, e.pose_wc);
-                }
-            }
-            Err(_) => out.summary.unreadable += 1,
-        }
-        out.records.push(FrameRecord {
-            index,
-            timestamp,
-            estimate,
-        });
-        progress(index + 1, total);
+    let control = RunControl {
+        max_frames,
+        stop: None,
+    };
+    let done = drive(dataset, tracker, &control, |r| {
+        progress(r.index + 1, total);
+        Ok::<(), Infallible>(())
+    });
+    match done {
+        Ok(out) => out,
+        Err((_, never)) => match never {},
     }
-    out.summary.frames = total;
-    let read = total - out.summary.unreadable;
-    out.summary.mean_ms = if read > 0 { ms_sum / read as f64 } else { 0.0 };
-    out
-}
-
-/// Writes one CSV line per frame:
-/// `index,timestamp,status,keyframe,inliers,inlier_ratio,rmse,iterations,covariance_trace,ms,message`
-/// (status `unreadable` for frames that could not be read; an empty `covariance_trace` when the
-/// covariance is unknown).
-pub fn write_metrics_csv(path: &Path, records: &[FrameRecord]) -> io::Result<()> {
-    let mut f = io::BufWriter::new(std::fs::File::create(path)?);
-    writeln!(f, "index,timestamp,status,keyframe,inliers,inlier_ratio,rmse,iterations,covariance_trace,ms,message")?;
-    for r in records {
-        match &r.estimate {
-            Ok(e) => {
-                let q = &e.quality;
-                let message = e.message.as_deref().unwrap_or("").replace([',', '\n'], ";");
-                writeln!(
-                    f,
-                    "{},{:.6},{},{},{},{:.4},{:.4},{},{},{:.3},{}",
-                    r.index,
-                    r.timestamp,
-                    e.status.as_str(),
-                    u8::from(q.keyframe),
-                    q.inliers,
-                    q.inlier_ratio,
-                    q.rmse,
-                    q.iterations,
-                    q.covariance_trace
-                        .map_or(String::new(), |t| format!("{t:.6e}")),
-                    q.ms,
-                    message
-                )?;
-            }
-            Err(why) => writeln!(
-                f,
-                "{},{:.6},unreadable,0,0,0,0,0,0,0,{}",
-                r.index,
-                r.timestamp,
-                why.replace([',', '\n'], ";")
-            )?,
-        }
-    }
-    f.flush()
 }

@@ -212,7 +212,8 @@ pub enum OdometryMethod {
     /// RGB-D: ORB matched to keyframes with depth, PnP RANSAC and robust refinement.
     FeatureRgbd,
     /// Monocular ORB: two-view initialisation, triangulated points, PnP; arbitrary scale.
-    Feature,
+    #[value(alias = "feature")]
+    Mono,
 }
 
 impl OdometryMethod {
@@ -221,32 +222,50 @@ impl OdometryMethod {
         match self {
             OdometryMethod::Direct => "direct",
             OdometryMethod::FeatureRgbd => "feature-rgbd",
-            OdometryMethod::Feature => "feature",
+            OdometryMethod::Mono => "mono",
         }
     }
 }
 
 /// Flags of `vofront odometry`.
 #[derive(Debug, Args)]
+#[command(
+    after_help = "Outputs are checked (folders created) before the first frame and \
+written line by line as each frame finishes. SIGINT/SIGTERM: the frame in progress is \
+finished, the summary printed, and the exit code is 130/143 (a second signal exits at once). \
+Exit codes: 0 done, 1 failed, 2 bad command line, 3 tracking lost for good, 130/143 interrupted."
+)]
 pub struct OdometryArgs {
     /// Dataset folder: TUM RGB-D (rgb.txt), KITTI odometry (image_0/, times.txt) or EuRoC (mav0/).
     pub dataset: PathBuf,
-    /// Tracker.
+    /// Tracker (`feature` is an alias of `mono`).
     #[arg(long, value_enum, default_value_t = OdometryMethod::Direct)]
     pub method: OdometryMethod,
-    /// Camera; without flags: the dataset's calibration, else a TUM preset from the folder name.
+    /// Camera; without flags: the dataset's calibration, else a TUM preset from the folder
+    /// name, else tum-ros.
     #[command(flatten)]
     pub camera: CameraArgs,
+    /// Depth units per metre, overriding the dataset's (TUM: 5000); 8-bit and 16-bit depth
+    /// PNGs are both divided by it as stored.
+    #[arg(long, value_name = "UNITS")]
+    pub depth_scale: Option<f64>,
+    /// ORB feature budget per frame of the feature trackers [default: the tracker's, 1000
+    /// for feature-rgbd].
+    #[arg(long, value_name = "N")]
+    pub features: Option<usize>,
     /// Trajectory output, TUM format (camera-to-world, first frame at the origin).
-    #[arg(long, default_value = "trajectory.txt")]
+    #[arg(long, value_name = "TXT", default_value = "vofront-out/trajectory.txt")]
     pub out: PathBuf,
     /// Per-frame CSV: status, keyframe, inliers, inlier ratio, rmse, iterations, covariance trace, ms.
-    #[arg(long, value_name = "CSV")]
-    pub metrics: Option<PathBuf>,
+    #[arg(long, value_name = "CSV", default_value = "vofront-out/frames.csv")]
+    pub metrics: PathBuf,
     /// Plot of the trajectory against the ground truth (needs ground truth in the dataset).
     #[arg(long, value_name = "PNG")]
     pub plot: Option<PathBuf>,
     /// Track only the first N frames.
     #[arg(long, value_name = "N")]
     pub max_frames: Option<usize>,
+    /// Print one JSON summary object instead of text.
+    #[arg(long)]
+    pub json: bool,
 }

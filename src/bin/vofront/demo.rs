@@ -119,10 +119,10 @@ fn run_sequence(room: &Scene, camera: vofront::geometry::Camera) -> Result<(), S
     for method in [
         OdometryMethod::Direct,
         OdometryMethod::FeatureRgbd,
-        OdometryMethod::Feature,
+        OdometryMethod::Mono,
     ] {
         let name = method.name();
-        let mut tracker = make_tracker(method, camera)?;
+        let mut tracker = make_tracker(method, camera, None)?;
         let out = track(&dataset, tracker.as_mut(), None);
         let traj = Path::new(OUT_DIR).join(format!("{name}_trajectory.txt"));
         out.trajectory.write_tum(&traj).map_err(|e| e.to_string())?;

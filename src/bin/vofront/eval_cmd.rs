@@ -6,7 +6,8 @@ use vofront::trajectory::Trajectory;
 
 use crate::args::{AlignArg, EvalArgs};
 
-fn stats_json(s: &Stats) -> Value {
+/// Evo-style statistics as a JSON object.
+pub(crate) fn stats_json(s: &Stats) -> Value {
     json!({"rmse": s.rmse, "mean": s.mean, "median": s.median, "std": s.std,
            "min": s.min, "max": s.max, "count": s.count})
 }

@@ -3,7 +3,8 @@
 //! Exit codes: 0 success (for `two-view` and `relpose`: at least one estimate is `ok`);
 //! 1 the job failed, with a one-line message saying why (no estimate at all); 2 bad command
 //! line; 3 (`odometry`) tracking was lost for good, partial results written; 4 (`two-view`,
-//! `relpose`) estimates were printed but none is `ok`.
+//! `relpose`) estimates were printed but none is `ok`; 130 / 143 (`odometry`) interrupted by
+//! SIGINT / SIGTERM, every finished frame written.
 /// `println!` that ends the process quietly (exit 141, as a SIGPIPE would) when standard
 /// output has been closed, e.g. by `vofront ... | head`, instead of panicking.
 macro_rules! outln {
@@ -76,11 +77,8 @@ fn main() -> ExitCode {
             Err(e) => Err(e),
         },
         Some(Command::Odometry(a)) => match odometry_cmd::run(a) {
-            Ok(false) => Ok(()),
-            Ok(true) => {
-                eprintln!("vofront: tracking was lost for good; partial results written");
-                return ExitCode::from(odometry_cmd::EXIT_LOST);
-            }
+            Ok(0) => Ok(()),
+            Ok(code) => return ExitCode::from(code),
             Err(e) => Err(e),
         },
         Some(Command::Eval(a)) => eval_cmd::run(a),

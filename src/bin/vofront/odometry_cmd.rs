@@ -1,68 +1,105 @@
-//! `vofront odometry DATASET`: track a whole sequence, write the TUM trajectory, per-frame
-//! metrics and a plot, and print a summary (with ATE when the dataset has ground truth).
+//! `vofront odometry DATASET`: track a whole sequence, streaming the TUM trajectory and the
+//! per-frame metrics to disk as each frame finishes, and print a summary (text or `--json`,
+//! with ATE and RPE when the dataset has ground truth).
+//!
+//! Output paths are checked (parent folders created, files opened) before the first frame.
+//! SIGINT / SIGTERM stop the run after the frame in progress: the summary is still printed
+//! and the exit code is [`EXIT_SIGINT`] / [`EXIT_SIGTERM`]; a second signal exits at once
+//! (every finished frame is already on disk).
 
-use std::io::IsTerminal;
+use std::fs::File;
+use std::io::{BufWriter, IsTerminal};
 use std::path::Path;
+use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
+use std::sync::Arc;
 
 use indicatif::{ProgressBar, ProgressStyle};
-use vofront::dataset::{tum::tum_preset_for, Dataset, DatasetKind};
-use vofront::eval::{ate, plot::write_plot, Alignment, EvalConfig};
+use serde_json::{json, Value};
+use vofront::dataset::{tum::tum_preset_for, Dataset};
+use vofront::eval::{ate, plot::write_plot, rpe, Alignment, AteResult, EvalConfig, RpeResult};
 use vofront::geometry::Camera;
 use vofront::odometry::direct::{DirectTracker, DirectTrackerConfig};
 use vofront::odometry::feature_rgbd::{FeatureRgbdConfig, FeatureRgbdTracker};
 use vofront::odometry::mono::{MonoConfig, MonoTracker};
-use vofront::odometry::run::{run as run_tracker, write_metrics_csv, RunOutput, RunSummary};
+use vofront::odometry::run::{
+    run as run_tracker, run_with, FrameRecord, MetricsCsvSink, RunControl, RunOutput, RunSummary,
+    TumSink,
+};
 use vofront::odometry::Tracker;
 
 use crate::args::{OdometryArgs, OdometryMethod};
+use crate::eval_cmd::stats_json;
 
 /// Exit code when tracking was lost for good (partial results are still written).
 pub const EXIT_LOST: u8 = 3;
+/// Exit code after SIGINT (128 + 2, as shells report it).
+pub const EXIT_SIGINT: u8 = 130;
+/// Exit code after SIGTERM (128 + 15).
+pub const EXIT_SIGTERM: u8 = 143;
 
-/// The camera: explicit flags first, then the dataset's calibration, then a TUM preset
-/// recognised from the folder name, then the ROS default.
-fn choose_camera(args: &OdometryArgs, dataset: &Dataset) -> Result<Camera, String> {
+/// The camera and where it came from: explicit flags first, then the dataset's calibration,
+/// then a TUM preset recognised from the folder name, then the ROS default (`tum-ros`).
+fn choose_camera(args: &OdometryArgs, dataset: &Dataset) -> Result<(Camera, &'static str), String> {
     if args.camera.is_given() {
-        return args.camera.camera();
+        return Ok((args.camera.camera()?, "command-line flags"));
     }
     if let Some(camera) = dataset.camera {
-        return Ok(camera);
+        return Ok((camera, "dataset calibration"));
     }
-    if dataset.kind == DatasetKind::Tum {
-        if let Some(camera) = tum_preset_for(&dataset.root) {
-            return Ok(camera);
-        }
+    if let Some(camera) = tum_preset_for(&dataset.root) {
+        return Ok((camera, "TUM preset from the folder name"));
     }
-    args.camera.camera()
+    Ok((args.camera.camera()?, "default: tum-ros"))
 }
 
-/// The tracker a method names.
-pub fn make_tracker(method: OdometryMethod, camera: Camera) -> Result<Box<dyn Tracker>, String> {
+/// One line describing `camera`.
+fn describe_camera(camera: &Camera) -> String {
+    let (k, d) = (camera.pinhole, camera.distortion);
+    format!(
+        "fx {} fy {} cx {} cy {}, distortion k1,k2,p1,p2,k3 = {},{},{},{},{}",
+        k.fx, k.fy, k.cx, k.cy, d.k1, d.k2, d.p1, d.p2, d.k3
+    )
+}
+
+/// The tracker a method names; `features` overrides the ORB budget of the feature trackers.
+pub fn make_tracker(
+    method: OdometryMethod,
+    camera: Camera,
+    features: Option<usize>,
+) -> Result<Box<dyn Tracker>, String> {
     Ok(match method {
         OdometryMethod::Direct => {
             Box::new(DirectTracker::new(camera, DirectTrackerConfig::default()))
         }
-        OdometryMethod::FeatureRgbd => Box::new(
-            FeatureRgbdTracker::new(camera, FeatureRgbdConfig::default())
-                .map_err(|e| e.to_string())?,
-        ),
-        OdometryMethod::Feature => {
-            Box::new(MonoTracker::new(camera, MonoConfig::default()).map_err(|e| e.to_string())?)
+        OdometryMethod::FeatureRgbd => {
+            let mut cfg = FeatureRgbdConfig::default();
+            cfg.orb.n_features = features.unwrap_or(cfg.orb.n_features);
+            Box::new(FeatureRgbdTracker::new(camera, cfg).map_err(|e| e.to_string())?)
+        }
+        OdometryMethod::Mono => {
+            let mut cfg = MonoConfig::default();
+            cfg.orb.n_features = features.unwrap_or(cfg.orb.n_features);
+            Box::new(MonoTracker::new(camera, cfg).map_err(|e| e.to_string())?)
         }
     })
 }
 
-/// Tracks `dataset` with `tracker`, a progress bar on stderr when it is a terminal.
-pub fn track(dataset: &Dataset, tracker: &mut dyn Tracker, max_frames: Option<usize>) -> RunOutput {
-    let total = max_frames.map_or(dataset.len(), |m| m.min(dataset.len()));
-    let bar = std::io::stderr().is_terminal().then(|| {
+/// A progress bar over `total` frames on stderr, when stderr is a terminal.
+fn progress_bar(total: usize) -> Option<ProgressBar> {
+    std::io::stderr().is_terminal().then(|| {
         let bar = ProgressBar::new(total as u64);
         bar.set_style(
             ProgressStyle::with_template("{bar:40} {pos}/{len} frames, {per_sec}, eta {eta}")
                 .unwrap_or_else(|_| ProgressStyle::default_bar()),
         );
         bar
-    });
+    })
+}
+
+/// Tracks `dataset` with `tracker` in memory, a progress bar on stderr when it is a terminal.
+pub fn track(dataset: &Dataset, tracker: &mut dyn Tracker, max_frames: Option<usize>) -> RunOutput {
+    let total = max_frames.map_or(dataset.len(), |m| m.min(dataset.len()));
+    let bar = progress_bar(total);
     let out = run_tracker(dataset, tracker, max_frames, |done, _| {
         if let Some(bar) = &bar {
             bar.set_position(done as u64);
@@ -76,77 +113,247 @@ pub fn track(dataset: &Dataset, tracker: &mut dyn Tracker, max_frames: Option<us
 
 /// The alignment a method's trajectory is evaluated with: monocular scale is arbitrary.
 pub fn alignment_for(method: OdometryMethod) -> Alignment {
-    if method == OdometryMethod::Feature {
+    if method == OdometryMethod::Mono {
         Alignment::Sim3
     } else {
         Alignment::Se3
     }
 }
 
-/// Prints the summary lines and, with ground truth, the ATE; writes the plot if asked.
-pub fn report(
+/// ATE and RPE of a run against the dataset's camera ground truth (EuRoC body poses turned
+/// into camera poses); `None` without ground truth or without any frame.
+fn evaluate(
     dataset: &Dataset,
     out: &RunOutput,
     alignment: Alignment,
-    plot: Option<&Path>,
-) -> Result<(), String> {
-    let s = &out.summary;
-    outln!(
-        "frames {}, tracked {}, lost {}, reinitialised {}, unreadable {}, keyframes {}, {:.1} ms per frame ({:.0} frames/s)",
-        s.frames, out.trajectory.len(), s.lost, s.reinitialised, s.unreadable, s.keyframes, s.mean_ms,
-        1e3 / s.mean_ms.max(1e-9)
-    );
-    let Some(gt) = &dataset.ground_truth else {
-        if plot.is_some() {
-            eprintln!("vofront: no ground truth in the dataset, no plot written");
-        }
-        return Ok(());
-    };
+) -> Option<(Result<AteResult, String>, Result<RpeResult, String>)> {
+    let gt = dataset.camera_ground_truth()?;
+    if out.summary.frames == 0 {
+        return None;
+    }
     let cfg = EvalConfig {
         alignment,
         max_dt: dataset.ground_truth_tolerance,
     };
-    match ate(gt, &out.trajectory, &cfg) {
+    // RPE is invariant to a rigid alignment; a similarity rescales its translation part.
+    let rpe_cfg = EvalConfig {
+        alignment: if alignment == Alignment::Sim3 {
+            Alignment::Sim3
+        } else {
+            Alignment::None
+        },
+        ..cfg
+    };
+    Some((
+        ate(&gt, &out.trajectory, &cfg).map_err(|e| e.to_string()),
+        rpe(&gt, &out.trajectory, &rpe_cfg).map_err(|e| e.to_string()),
+    ))
+}
+
+/// Writes the plot of the aligned trajectory against the ground truth.
+fn plot(dataset: &Dataset, a: &AteResult, path: &Path) -> Result<(), String> {
+    let gt = dataset.camera_ground_truth().unwrap_or_default();
+    write_plot(path, &gt, &a.aligned, &a.errors).map_err(|e| format!("{}: {e}", path.display()))
+}
+
+/// Prints the summary lines and, with ground truth, ATE and RPE; writes the plot if asked.
+pub fn report(
+    dataset: &Dataset,
+    out: &RunOutput,
+    alignment: Alignment,
+    plot_path: Option<&Path>,
+) -> Result<(), String> {
+    let s = &out.summary;
+    match s.frames_per_second() {
+        _ if s.frames == 0 => outln!("frames 0: nothing was tracked"),
+        None => outln!("frames {}: none could be read, nothing was tracked", s.frames),
+        Some(fps) => outln!(
+            "frames {}, tracked {}, lost {}, reinitialised {}, unreadable {}, keyframes {}, {:.1} ms per frame ({fps:.0} frames/s)",
+            s.frames, out.trajectory.len(), s.lost, s.reinitialised, s.unreadable, s.keyframes, s.mean_ms
+        ),
+    }
+    let Some((ate, rpe)) = evaluate(dataset, out, alignment) else {
+        if plot_path.is_some() {
+            eprintln!("vofront: no ground truth (or no frame), no plot written");
+        }
+        return Ok(());
+    };
+    match ate {
         Ok(a) => {
             outln!(
                 "ATE rmse {:.4} m over {} poses ({alignment:?}-aligned)",
                 a.stats.rmse,
                 a.pairs.len()
             );
-            if let Some(path) = plot {
-                write_plot(path, gt, &a.aligned, &a.errors)
-                    .map_err(|e| format!("{}: {e}", path.display()))?;
+            if let Some(path) = plot_path {
+                plot(dataset, &a, path)?;
             }
         }
         Err(e) => outln!("ATE not computed: {e}"),
     }
+    match rpe {
+        Ok(r) => outln!(
+            "RPE rmse {:.4} m, {:.3} deg per frame",
+            r.translation.rmse,
+            r.rotation_deg.rmse
+        ),
+        Err(e) => outln!("RPE not computed: {e}"),
+    }
     Ok(())
 }
 
-/// Runs `vofront odometry`; `Ok(true)` when tracking was lost for good.
-pub fn run(args: &OdometryArgs) -> Result<bool, String> {
-    let dataset = Dataset::open(&args.dataset).map_err(|e| e.to_string())?;
-    let camera = choose_camera(args, &dataset)?;
-    if args.method != OdometryMethod::Feature && dataset.frames.iter().all(|f| f.depth.is_none()) {
+/// The `--json` summary object (keys documented in the README); writes the plot if asked.
+fn report_json(
+    args: &OdometryArgs,
+    dataset: &Dataset,
+    (camera, source): (&Camera, &str),
+    out: &RunOutput,
+) -> Result<Value, String> {
+    let s = &out.summary;
+    let (k, d) = (camera.pinhole, camera.distortion);
+    let (mut ate_json, mut rpe_json) = (Value::Null, Value::Null);
+    if let Some((ate, rpe)) = evaluate(dataset, out, alignment_for(args.method)) {
+        ate_json = match ate {
+            Ok(a) => {
+                if let Some(path) = &args.plot {
+                    plot(dataset, &a, path)?;
+                }
+                let mut stats = stats_json(&a.stats);
+                stats["pairs"] = json!(a.pairs.len());
+                stats["alignment"] =
+                    json!(format!("{:?}", alignment_for(args.method)).to_lowercase());
+                stats
+            }
+            Err(e) => json!({ "error": e }),
+        };
+        rpe_json = match rpe {
+            Ok(r) => {
+                json!({"translation": stats_json(&r.translation), "rotation_deg": stats_json(&r.rotation_deg)})
+            }
+            Err(e) => json!({ "error": e }),
+        };
+    }
+    Ok(json!({
+        "dataset": dataset.root.display().to_string(),
+        "format": format!("{:?}", dataset.kind).to_lowercase(),
+        "camera": {"source": source, "fx": k.fx, "fy": k.fy, "cx": k.cx, "cy": k.cy,
+                   "distortion": [d.k1, d.k2, d.p1, d.p2, d.k3]},
+        "method": args.method.name(),
+        "frames": s.frames,
+        "tracked": out.trajectory.len(),
+        "lost": s.lost,
+        "reinitialised": s.reinitialised,
+        "unreadable": s.unreadable,
+        "keyframes": s.keyframes,
+        "ms_per_frame": (s.frames > s.unreadable).then_some(s.mean_ms),
+        "fps": s.frames_per_second(),
+        "interrupted": s.interrupted,
+        "lost_for_good": RunSummary::lost_for_good(&out.records),
+        "ate": ate_json,
+        "rpe": rpe_json,
+        "outputs": {"trajectory": args.out.display().to_string(),
+                    "metrics": args.metrics.display().to_string(),
+                    "plot": args.plot.as_ref().map(|p| p.display().to_string())},
+    }))
+}
+
+/// Creates `path` for writing (and its missing parent folders), before any work is done.
+fn create_output(path: &Path) -> Result<BufWriter<File>, String> {
+    let fail = |e: std::io::Error| format!("{}: cannot write: {e}", path.display());
+    if let Some(parent) = path.parent().filter(|p| !p.as_os_str().is_empty()) {
+        std::fs::create_dir_all(parent).map_err(fail)?;
+    }
+    File::create(path).map(BufWriter::new).map_err(fail)
+}
+
+/// The stop flag raised by the first SIGINT or SIGTERM, and the exit code it asks for
+/// (0 until a signal arrives). A second signal exits at once with that signal's code.
+fn install_signal_handlers() -> Result<(Arc<AtomicBool>, Arc<AtomicUsize>), String> {
+    use signal_hook::consts::{SIGINT, SIGTERM};
+    use signal_hook::flag;
+    let stop = Arc::new(AtomicBool::new(false));
+    let code = Arc::new(AtomicUsize::new(0));
+    for (signal, exit) in [(SIGINT, EXIT_SIGINT), (SIGTERM, EXIT_SIGTERM)] {
+        flag::register_conditional_shutdown(signal, i32::from(exit), Arc::clone(&stop))
+            .and_then(|_| flag::register_usize(signal, Arc::clone(&code), usize::from(exit)))
+            .and_then(|_| flag::register(signal, Arc::clone(&stop)))
+            .map_err(|e| format!("cannot install the signal handlers: {e}"))?;
+    }
+    Ok((stop, code))
+}
+
+/// Runs `vofront odometry`; the exit code: 0, [`EXIT_LOST`], [`EXIT_SIGINT`] or
+/// [`EXIT_SIGTERM`].
+pub fn run(args: &OdometryArgs) -> Result<u8, String> {
+    let mut dataset = Dataset::open(&args.dataset).map_err(|e| e.to_string())?;
+    if let Some(scale) = args.depth_scale {
+        if !(scale.is_finite() && scale > 0.0) {
+            return Err(format!("--depth-scale {scale}: must be a positive number"));
+        }
+        dataset.depth_scale = Some(scale);
+    }
+    let (camera, source) = choose_camera(args, &dataset)?;
+    if args.method != OdometryMethod::Mono && dataset.frames.iter().all(|f| f.depth.is_none()) {
         return Err(format!(
-            "{}: the {:?} method needs depth, and this dataset has none",
+            "{}: the {} method needs depth, and this dataset has none",
             args.dataset.display(),
-            args.method
+            args.method.name()
         ));
     }
-    let mut tracker = make_tracker(args.method, camera)?;
-    let out = track(&dataset, tracker.as_mut(), args.max_frames);
-    out.trajectory
-        .write_tum(&args.out)
-        .map_err(|e| e.to_string())?;
-    if let Some(path) = &args.metrics {
-        write_metrics_csv(path, &out.records).map_err(|e| format!("{}: {e}", path.display()))?;
+    let mut tracker = make_tracker(args.method, camera, args.features)?;
+    let trajectory = TumSink::new(create_output(&args.out)?);
+    let metrics = MetricsCsvSink::new(create_output(&args.metrics)?)
+        .map_err(|e| format!("{}: cannot write: {e}", args.metrics.display()))?;
+    if let Some(path) = &args.plot {
+        create_output(path)?;
+        std::fs::remove_file(path).map_err(|e| format!("{}: {e}", path.display()))?;
     }
-    report(
-        &dataset,
-        &out,
-        alignment_for(args.method),
-        args.plot.as_deref(),
-    )?;
-    Ok(RunSummary::lost_for_good(&out.records))
+    if !args.json {
+        outln!("camera: {} ({source})", describe_camera(&camera));
+    }
+    let (stop, signal_code) = install_signal_handlers()?;
+    let control = RunControl {
+        max_frames: args.max_frames,
+        stop: Some(&stop),
+    };
+    let total = args
+        .max_frames
+        .map_or(dataset.len(), |m| m.min(dataset.len()));
+    let bar = progress_bar(total);
+    let progress = |r: &FrameRecord| {
+        if let Some(bar) = &bar {
+            bar.set_position(r.index as u64 + 1);
+        }
+        Ok(())
+    };
+    let mut sink = (trajectory, (metrics, progress));
+    let out = run_with(&dataset, tracker.as_mut(), &control, &mut sink);
+    if let Some(bar) = &bar {
+        bar.finish_and_clear();
+    }
+    let out = out.map_err(|e| e.to_string())?;
+    if args.json {
+        outln!("{}", report_json(args, &dataset, (&camera, source), &out)?);
+    } else {
+        report(
+            &dataset,
+            &out,
+            alignment_for(args.method),
+            args.plot.as_deref(),
+        )?;
+    }
+    if out.summary.interrupted {
+        eprintln!(
+            "vofront: interrupted after {} frames; every finished frame is in {} and {}",
+            out.summary.frames,
+            args.out.display(),
+            args.metrics.display()
+        );
+        return Ok(u8::try_from(signal_code.load(Ordering::SeqCst)).unwrap_or(EXIT_SIGTERM));
+    }
+    if RunSummary::lost_for_good(&out.records) {
+        eprintln!("vofront: tracking was lost for good; partial results written");
+        return Ok(EXIT_LOST);
+    }
+    Ok(0)
 }
