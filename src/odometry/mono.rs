@@ -1,17 +1,27 @@
 //! Monocular feature tracker: two-view initialisation, triangulated map points, PnP tracking.
 //!
-//! 1. Initialisation: the first frame is the reference; each later frame is matched to it and
-//!    [`estimate_relative_pose`] runs (essential or homography); once the median parallax and
-//!    the number of triangulated points suffice, the points (in units of that first baseline,
-//!    which fixes the arbitrary scale) become the map and the frame the first keyframe.
+//! 1. Initialisation: the first frame with enough features is the reference; each later frame
+//!    is matched to it and [`estimate_relative_pose`] runs (essential or homography); once the
+//!    median parallax and the number of triangulated points suffice, the points (in units of
+//!    that first baseline, which fixes the arbitrary scale) become the map and the frame the
+//!    first keyframe. A rotation-dominant start keeps waiting for parallax; a frame with too
+//!    few features is skipped (never made the reference), and a reference that no longer
+//!    matches the current frame is replaced by it.
 //! 2. Tracking: keyframe features that carry a world point are matched to the current frame
 //!    around their predicted positions `pi(K T_cw' P_w)`, and PnP RANSAC with robust refinement
 //!    gives `T_cw`; `T_wc = T_cw^-1`.
-//! 3. New keyframes carry the tracked points over and triangulate new ones from keyframe
-//!    features that had none, with both poses known (DLT, checked for cheirality, parallax and
-//!    reprojection error).
-//! 4. When PnP fails the frame is lost and initialisation starts again from it, placed at the
-//!    motion model's guess; the new map has its own scale.
+//! 3. Keyframes are decided without metric units: a new one is taken when the median parallax
+//!    of the tracked points between the keyframe and the current camera centres,
+//!    `angle(P - C_kf, P - C_cur)`, reaches `keyframe_parallax_deg`, when the tracked ratio
+//!    (PnP inliers over the keyframe's points) falls under the policy's `min_overlap`, or on
+//!    the policy's rotation and residual tests. New keyframes carry the tracked points over and
+//!    triangulate new ones from keyframe features that had none, with both poses known (DLT,
+//!    checked for cheirality, parallax and reprojection error).
+//! 4. When PnP fails the frame is lost and initialisation starts again (from that frame if it
+//!    has enough features), placed at the motion model's guess. The new map's scale is matched
+//!    to the lost one: points of the last keyframe matched by descriptor to the new map's
+//!    points give `s = median(|P_old - C_ref| / |P_new - C_ref|)` about the new reference camera
+//!    `C_ref`; when too few match the frame's message says the segment is not joined.
 
 use std::time::Instant;
 
@@ -54,6 +64,13 @@ pub struct MonoConfig {
     pub max_reprojection_px: f64,
     /// Smallest parallax of a new point, degrees.
     pub min_point_parallax_deg: f64,
+    /// Median parallax of the tracked points against the keyframe that triggers a new
+    /// keyframe, degrees.
+    pub keyframe_parallax_deg: f64,
+    /// Frames an initialisation waits for parallax before taking a newer reference.
+    pub max_init_frames: usize,
+    /// Fewest old-map points matched to the new map to join their scales after a loss.
+    pub min_scale_matches: usize,
 }
 
 impl Default for MonoConfig {
@@ -73,12 +90,17 @@ impl Default for MonoConfig {
             min_init_points: 80,
             min_init_parallax_deg: 1.0,
             min_inliers: 25,
+            // Map units mean nothing in monocular: keyframes by parallax and tracked ratio.
             keyframe: KeyframePolicy {
-                max_relative_translation: 0.05,
+                max_relative_translation: f64::INFINITY,
+                min_overlap: 0.5,
                 ..KeyframePolicy::default()
             },
             max_reprojection_px: 2.0,
             min_point_parallax_deg: 0.5,
+            keyframe_parallax_deg: 1.0,
+            max_init_frames: 30,
+            min_scale_matches: 12,
         }
     }
 }
@@ -104,6 +126,27 @@ impl Keyframe {
     }
 }
 
+/// Median over points `P` of the parallax angle `angle(P - c1, P - c2)`, degrees (0 without
+/// points).
+fn median_parallax_deg<'a>(
+    c1: &Point3<f64>,
+    c2: &Point3<f64>,
+    points: impl Iterator<Item = &'a Point3<f64>>,
+) -> f64 {
+    let mut angles: Vec<f64> = points
+        .map(|p| (p - c1).angle(&(p - c2)).to_degrees())
+        .collect();
+    crate::robust::median_in_place(&mut angles).unwrap_or(0.0)
+}
+
+/// Why an initialisation attempt failed, and whether its reference is still worth waiting on.
+struct InitFailure {
+    why: String,
+    /// False when the reference no longer matches the current frame well enough to ever
+    /// initialise: it is then replaced.
+    keep_reference: bool,
+}
+
 enum State {
     /// Nothing seen yet, or just lost.
     Empty,
@@ -125,10 +168,9 @@ pub struct MonoTracker {
     state: State,
     motion: ConstantVelocity,
     initialised_once: bool,
+    /// The last keyframe before tracking was lost: its points set the scale of the next map.
+    lost_map: Option<Keyframe>,
 }
-
-/// Frames an initialisation waits for parallax before taking a newer reference.
-const MAX_INIT_FRAMES: usize = 30;
 
 impl MonoTracker {
     /// A tracker for frames of `camera`; fails on an invalid ORB configuration.
@@ -141,6 +183,7 @@ impl MonoTracker {
             state: State::Empty,
             motion: ConstantVelocity::default(),
             initialised_once: false,
+            lost_map: None,
         })
     }
 
@@ -165,7 +208,11 @@ impl MonoTracker {
         reference: &Features,
         t_w1: &Isometry3<f64>,
         current: &Features,
-    ) -> Result<(Keyframe, FrameQuality), String> {
+    ) -> Result<(Keyframe, FrameQuality), InitFailure> {
+        let lost = |why: String| InitFailure {
+            why,
+            keep_reference: false,
+        };
         let matches = match_descriptors(
             &reference.descriptors,
             &current.descriptors,
@@ -179,19 +226,30 @@ impl MonoTracker {
             .iter()
             .map(|m| feature_pixel(current, m.train))
             .collect();
+        if matches.len() < self.cfg.min_init_points {
+            return Err(lost(format!(
+                "initialising: {} matches to the reference, {} needed",
+                matches.len(),
+                self.cfg.min_init_points
+            )));
+        }
         let rel = estimate_relative_pose(&x1, &x2, &self.camera, &self.cfg.relative)
-            .map_err(|e| e.to_string())?;
+            .map_err(|e| lost(format!("initialising: {e}")))?;
+        let wait = |why: String| InitFailure {
+            why,
+            keep_reference: true,
+        };
         if rel.low_parallax || rel.parallax_deg < self.cfg.min_init_parallax_deg {
-            return Err(format!(
+            return Err(wait(format!(
                 "initialising: parallax {:.2} deg",
                 rel.parallax_deg
-            ));
+            )));
         }
         if rel.triangulated < self.cfg.min_init_points {
-            return Err(format!(
+            return Err(wait(format!(
                 "initialising: {} points triangulated, {} needed",
                 rel.triangulated, self.cfg.min_init_points
-            ));
+            )));
         }
         let mut points = vec![None; current.len()];
         for (m, p) in matches.iter().zip(&rel.points) {
@@ -215,6 +273,42 @@ impl MonoTracker {
             },
             quality,
         ))
+    }
+
+    /// Scale `s` that brings `kf` (a new map initialised from the reference camera at `t_w1`)
+    /// to the units of `old`: the median of `|P_old - C_ref| / |P_new - C_ref|` over old
+    /// points matched by descriptor to new ones; `None` when fewer than `min_scale_matches`.
+    fn scale_to(&self, old: &Keyframe, kf: &Keyframe, t_w1: &Isometry3<f64>) -> Option<f64> {
+        let matches = match_descriptors(
+            &old.features.descriptors,
+            &kf.features.descriptors,
+            &self.cfg.matching,
+        );
+        let c = Point3::from(t_w1.translation.vector);
+        let mut ratios: Vec<f64> = matches
+            .iter()
+            .filter_map(|m| {
+                let (p_old, p_new) = (old.points[m.query as usize]?, kf.points[m.train as usize]?);
+                let r = (p_old - c).norm() / (p_new - c).norm();
+                r.is_finite().then_some(r)
+            })
+            .collect();
+        if ratios.len() < self.cfg.min_scale_matches {
+            return None;
+        }
+        crate::robust::median_in_place(&mut ratios).filter(|s| *s > 0.0)
+    }
+
+    /// `kf` with its points and pose scaled by `s` about the reference camera `t_w1`:
+    /// `P <- T_w1 (s T_w1^-1 P)`, and the translation of `T_w1^-1 T_wc` times `s`.
+    fn rescale(kf: &mut Keyframe, t_w1: &Isometry3<f64>, s: f64) {
+        let t_1w = t_w1.inverse();
+        for p in kf.points.iter_mut().flatten() {
+            *p = t_w1 * Point3::from((t_1w * *p).coords * s);
+        }
+        let mut t_1c = t_1w * kf.t_wc;
+        t_1c.translation.vector *= s;
+        kf.t_wc = t_w1 * t_1c;
     }
 
     /// World points for `current`'s features at `t_wc`: tracked inliers keep their point, and
@@ -304,11 +398,16 @@ impl MonoTracker {
         let fit = match fit {
             Ok(fit) => fit,
             Err(why) => {
-                self.state = State::Initialising {
-                    reference: current,
-                    t_wc: predicted,
-                    frames: 0,
-                };
+                if let State::Tracking(kf) = std::mem::replace(&mut self.state, State::Empty) {
+                    self.lost_map = Some(kf);
+                }
+                if current.len() >= self.cfg.min_init_points {
+                    self.state = State::Initialising {
+                        reference: current,
+                        t_wc: predicted,
+                        frames: 0,
+                    };
+                }
                 self.motion.reset_velocity();
                 let quality = FrameQuality {
                     ms: ms_since(start),
@@ -334,7 +433,13 @@ impl MonoTracker {
             residual: fit.rmse_px,
             first_residual,
         };
-        let keyframe = self.cfg.keyframe.needs_keyframe(&view);
+        let parallax = median_parallax_deg(
+            &Point3::from(kf.t_wc.translation.vector),
+            &Point3::from(t_wc.translation.vector),
+            inliers.iter().map(|(_, p)| p),
+        );
+        let keyframe =
+            parallax >= self.cfg.keyframe_parallax_deg || self.cfg.keyframe.needs_keyframe(&view);
         let mut quality = FrameQuality {
             inliers: fit.inlier_count,
             inlier_ratio: fit.inlier_count as f64 / matches.len().max(1) as f64,
@@ -359,21 +464,77 @@ impl MonoTracker {
     }
 }
 
+impl MonoTracker {
+    /// The map `kf` initialised from the reference at `t_w1` becomes the tracked map, its
+    /// scale joined to the lost map's where they overlap.
+    fn start_map(
+        &mut self,
+        mut kf: Keyframe,
+        t_w1: &Isometry3<f64>,
+        quality: FrameQuality,
+        start: Instant,
+    ) -> FrameEstimate {
+        let (status, message) = if self.initialised_once {
+            let joined = self
+                .lost_map
+                .take()
+                .and_then(|old| self.scale_to(&old, &kf, t_w1));
+            match joined {
+                Some(s) => {
+                    Self::rescale(&mut kf, t_w1, s);
+                    (
+                        TrackStatus::Reinitialised,
+                        Some(format!("new map, scale {s:.3} joined to the lost one")),
+                    )
+                }
+                None => (
+                    TrackStatus::Reinitialised,
+                    Some("new map, scale not joined to the lost one (segment break)".into()),
+                ),
+            }
+        } else {
+            (TrackStatus::Ok, None)
+        };
+        self.initialised_once = true;
+        let pose = kf.t_wc;
+        self.motion.update(pose);
+        self.motion.reset_velocity();
+        self.state = State::Tracking(kf);
+        let quality = FrameQuality {
+            ms: ms_since(start),
+            ..quality
+        };
+        self.estimate(pose, status, quality, message)
+    }
+
+    /// A frame that cannot serve the initialisation: reported lost, the state is untouched.
+    fn skipped(&self, predicted: Isometry3<f64>, why: String, start: Instant) -> FrameEstimate {
+        let quality = FrameQuality {
+            ms: ms_since(start),
+            ..FrameQuality::default()
+        };
+        self.estimate(predicted, TrackStatus::Lost, quality, Some(why))
+    }
+}
+
 impl Tracker for MonoTracker {
     fn track(&mut self, frame: &Frame) -> FrameEstimate {
         let start = Instant::now();
         let predicted = self.motion.predict().unwrap_or_else(Isometry3::identity);
         let current = match self.orb.detect_and_describe(&frame.image) {
             Ok(f) => f,
-            Err(e) => {
-                return self.estimate(
-                    predicted,
-                    TrackStatus::Lost,
-                    FrameQuality::default(),
-                    Some(e.to_string()),
-                )
-            }
+            Err(e) => return self.skipped(predicted, e.to_string(), start),
         };
+        let tracking = matches!(self.state, State::Tracking(_));
+        if !tracking && current.len() < self.cfg.min_init_points {
+            // A featureless frame can neither start nor serve an initialisation: skip it.
+            let why = format!(
+                "initialising: {} features, {} needed (frame skipped)",
+                current.len(),
+                self.cfg.min_init_points
+            );
+            return self.skipped(predicted, why, start);
+        }
         match std::mem::replace(&mut self.state, State::Empty) {
             State::Empty => {
                 let first = !self.initialised_once && self.motion.predict().is_none();
@@ -392,12 +553,7 @@ impl Tracker for MonoTracker {
                     };
                     self.estimate(predicted, TrackStatus::Ok, quality, None)
                 } else {
-                    self.estimate(
-                        predicted,
-                        TrackStatus::Lost,
-                        FrameQuality::default(),
-                        Some("initialising".into()),
-                    )
+                    self.skipped(predicted, "initialising: new reference".into(), start)
                 }
             }
             State::Initialising {
@@ -405,46 +561,22 @@ impl Tracker for MonoTracker {
                 t_wc,
                 frames,
             } => match self.initialise(&reference, &t_wc, &current) {
-                Ok((kf, quality)) => {
-                    let status = if self.initialised_once {
-                        TrackStatus::Reinitialised
-                    } else {
-                        TrackStatus::Ok
-                    };
-                    self.initialised_once = true;
-                    let pose = kf.t_wc;
-                    self.motion.update(pose);
-                    self.motion.reset_velocity();
-                    self.state = State::Tracking(kf);
-                    self.estimate(
-                        pose,
-                        status,
-                        FrameQuality {
-                            ms: ms_since(start),
-                            ..quality
-                        },
-                        None,
-                    )
-                }
-                Err(why) => {
-                    self.state = if frames >= MAX_INIT_FRAMES {
-                        State::Initialising {
-                            reference: current,
-                            t_wc: predicted,
-                            frames: 0,
-                        }
-                    } else {
+                Ok((kf, quality)) => self.start_map(kf, &t_wc, quality, start),
+                Err(failure) => {
+                    self.state = if failure.keep_reference && frames < self.cfg.max_init_frames {
                         State::Initialising {
                             reference,
                             t_wc,
                             frames: frames + 1,
                         }
+                    } else {
+                        State::Initialising {
+                            reference: current,
+                            t_wc: predicted,
+                            frames: 0,
+                        }
                     };
-                    let quality = FrameQuality {
-                        ms: ms_since(start),
-                        ..FrameQuality::default()
-                    };
-                    self.estimate(predicted, TrackStatus::Lost, quality, Some(why))
+                    self.skipped(predicted, failure.why, start)
                 }
             },
             tracking @ State::Tracking(_) => {
