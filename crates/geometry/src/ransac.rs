@@ -3,8 +3,11 @@
 //! For `k` iterations a minimal sample (drawn with a seeded [`StdRng`]) gives hypotheses from
 //! [`Estimator::fit_minimal`]; each is scored by MSAC, `C = sum_i min(r_i^2, t^2)` (lower is
 //! better), so that a model with many marginal inliers (`r` close to `t`) loses to one whose
-//! inliers fit tightly. A new best hypothesis is refined by local optimisation:
-//! [`Estimator::refine`] on its inliers and rescore, repeated while the score improves.
+//! inliers fit tightly. Every hypothesis that beats the best *minimal-sample* score so far is
+//! refined by local optimisation ([`Estimator::refine`] on its inliers and rescore, repeated
+//! while the score improves) and competes with the best refined model. Comparing raw
+//! hypotheses with raw ones matters: a wrong model polished early would otherwise set a bar
+//! that noisy minimal models of the true one never clear, so they would never be polished.
 //!
 //! Stopping: the iteration count adapts to the inlier ratio `w` of the best *confirmed* model,
 //! `k = log(1 - p) / log(1 - w^s)` for confidence `p` and sample size `s`. A model is confirmed
@@ -236,6 +239,10 @@ pub fn ransac<E: Estimator>(est: &E, cfg: &RansacConfig) -> Option<RansacResult<
         models: Vec::new(),
     };
     let mut best: Option<Scored<E::Model>> = None;
+    // Best score of a minimal-sample model: local optimisation runs on every minimal model
+    // that beats it, so that a polished wrong model cannot keep raw (noisy) hypotheses of
+    // the true one from ever being polished.
+    let mut best_minimal = f64::INFINITY;
     // Iterations the best confirmed model asks for; the cap until one is confirmed.
     let mut needed = cfg.max_iterations;
     let mut iterations = 0;
@@ -244,12 +251,15 @@ pub fn ransac<E: Estimator>(est: &E, cfg: &RansacConfig) -> Option<RansacResult<
         draw_sample(&mut rng, &mut pool, s, &mut sample);
         est.fit_minimal(&sample, &mut models);
         for m in models.drain(..) {
-            let bound = best.as_ref().map_or(f64::INFINITY, |b| b.1);
-            let (score, count) = est.score(&m, threshold_sq, bound);
-            if score >= bound {
+            let (score, count) = est.score(&m, threshold_sq, best_minimal);
+            if score >= best_minimal {
                 continue;
             }
+            best_minimal = score;
             let (current, confirmed) = lo.run(est, (m, score, count), threshold_sq, cfg.lo_rounds);
+            if best.as_ref().is_some_and(|b| b.1 <= current.1) {
+                continue;
+            }
             if confirmed {
                 needed = required_iterations(cfg.confidence, current.2 as f64 / n as f64, s);
             }
