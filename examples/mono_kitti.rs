@@ -69,7 +69,6 @@ fn bench(dir: &std::path::Path) -> Result<(), String> {
     let cfg = EvalConfig {
         alignment: Alignment::Sim3,
         max_dt: dataset.ground_truth_tolerance,
-        ..EvalConfig::default()
     };
     let a = ate(&gt, &trajectory, &cfg).map_err(|e| e.to_string())?;
     let r = rpe(&gt, &trajectory, &cfg).map_err(|e| e.to_string())?;

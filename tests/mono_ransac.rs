@@ -34,14 +34,12 @@ impl Noise {
     }
 }
 
+/// World points with their pixels in the two frames, index-aligned.
+type Matches = (Vec<Point3<f64>>, Vec<Vector2<f64>>, Vec<Vector2<f64>>);
+
 /// Matches `i -> j` of the driving street: exact projections plus noise, a fraction replaced
 /// by random pairs; returns the world points too (for PnP).
-fn noisy_matches(
-    seq: &DrivingSequence,
-    i: usize,
-    j: usize,
-    n: usize,
-) -> (Vec<Point3<f64>>, Vec<Vector2<f64>>, Vec<Vector2<f64>>) {
+fn noisy_matches(seq: &DrivingSequence, i: usize, j: usize, n: usize) -> Matches {
     let mut rng = Noise(1000 + i as u64);
     let (w, h) = (f64::from(seq.size.0), f64::from(seq.size.1));
     let mut out = (Vec::new(), Vec::new(), Vec::new());

@@ -110,11 +110,14 @@ impl LocalMap {
         self.keyframes.len() - 1
     }
 
-    /// A new point at `position` observed by `(window index, feature)` pairs.
-    pub fn add_point(&mut self, position: Point3<f64>, observed: &[(usize, u32)]) -> PointId {
+    /// A new point at `position` observed by `(window index, feature)` pairs (the first gives
+    /// its descriptor); nothing without observations.
+    pub fn add_point(&mut self, position: Point3<f64>, observed: &[(usize, u32)]) {
+        let Some(&(k0, f0)) = observed.first() else {
+            return;
+        };
         let id = self.next_point;
         self.next_point += 1;
-        let (k0, f0) = observed[0];
         let kf0 = &self.keyframes[k0];
         let mut point = MapPoint {
             position,
@@ -130,7 +133,6 @@ impl LocalMap {
             point.observations.push((kf.id, f));
         }
         self.points.insert(id, point);
-        id
     }
 
     /// Records that `point` is observed by feature `f` of the keyframe at window index `k`.
