@@ -64,3 +64,48 @@ fn mono_tracker_follows_the_rendered_drive() {
         seq.path_length()
     );
 }
+
+/// Issue 11: a featureless frame is skipped, never waited on. A blank frame before and during
+/// the initialisation must not become the reference (the map is made from the textured frames
+/// around it), and a blank frame while tracking is recovered from within a few frames.
+#[test]
+fn featureless_frames_are_skipped_not_waited_on() {
+    let seq = DrivingSequence::new(12, 12);
+    let (w, h) = seq.size;
+    let blank = || vofront::dataset::Frame {
+        timestamp: 0.0,
+        image: image::GrayImage::from_pixel(w, h, image::Luma([128])),
+        depth: None,
+    };
+    let rendered = |i: usize| Frame {
+        timestamp: 0.0,
+        image: to_gray8(&seq.render(i).image),
+        depth: None,
+    };
+    // blank, r0, blank, r1 .. r6, blank, r7 .. r11
+    let mut order: Vec<Option<usize>> = vec![None, Some(0), None];
+    order.extend((1..7).map(Some));
+    order.push(None);
+    order.extend((7..12).map(Some));
+    let mut tracker = MonoTracker::new(seq.camera, MonoConfig::default()).expect("tracker");
+    let statuses: Vec<TrackStatus> = order
+        .iter()
+        .enumerate()
+        .map(|(k, which)| {
+            let mut frame = which.map_or_else(blank, rendered);
+            frame.timestamp = k as f64 / FRAME_RATE;
+            tracker.track(&frame).status
+        })
+        .collect();
+    // The blank first frame is skipped; r0 starts the world frame.
+    assert_eq!(statuses[0], TrackStatus::Lost);
+    assert_eq!(statuses[1], TrackStatus::Ok);
+    // The map is made from r0 within the usual few frames, despite the blank in between.
+    let initialised = (3..9).find(|&k| statuses[k] == TrackStatus::Ok);
+    assert!(initialised.is_some(), "{statuses:?}");
+    // After the blank during tracking (index 9) tracking resumes within five frames.
+    assert!(
+        (10..15).any(|k| statuses[k] != TrackStatus::Lost),
+        "{statuses:?}"
+    );
+}
