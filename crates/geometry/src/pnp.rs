@@ -69,11 +69,32 @@ pub struct PnpResult {
     pub iterations: usize,
 }
 
-/// P3P hypotheses scored by the squared reprojection error in normalized coordinates.
+/// P3P hypotheses scored by the squared reprojection error in normalized coordinates; local
+/// optimisation runs a few Huber IRLS steps on the pixel reprojection error of the inliers.
 struct PnpEstimator<'a> {
     world: &'a [Point3<f64>],
     bearings: &'a [Vector3<f64>],
     normalized: &'a [Vector2<f64>],
+    /// Observed pixels, index-aligned with `world`.
+    pixels: &'a [Vector2<f64>],
+    camera: &'a Camera,
+    /// Residual scale of the Huber loss, pixels.
+    sigma_px: f64,
+}
+
+/// IRLS iterations of one local-optimisation round of the PnP RANSAC.
+const LO_IRLS_ITERATIONS: usize = 4;
+
+/// The Huber IRLS settings of PnP refinement at the residual scale `sigma_px`.
+fn huber_irls(sigma_px: f64, max_iterations: usize) -> IrlsConfig {
+    IrlsConfig {
+        loss: Loss::Huber(1.345),
+        scale: ScaleMode::Fixed(sigma_px),
+        lm: LmConfig {
+            max_iterations,
+            ..LmConfig::default()
+        },
+    }
 }
 
 impl Estimator for PnpEstimator<'_> {
@@ -98,8 +119,22 @@ impl Estimator for PnpEstimator<'_> {
     }
 
     fn fit_nonminimal(&self, _indices: &[usize], out: &mut Vec<Isometry3<f64>>) {
-        // No local optimisation: the final IRLS refinement polishes the best hypothesis.
+        // No closed-form refit: local optimisation iterates from the hypothesis (`refine`).
         out.clear();
+    }
+
+    fn refine(&self, start: &Isometry3<f64>, indices: &[usize], out: &mut Vec<Isometry3<f64>>) {
+        out.clear();
+        let mut problem = Reprojection {
+            camera: self.camera,
+            world: self.world,
+            pixels: self.pixels,
+            indices,
+        };
+        let cfg = huber_irls(self.sigma_px, LO_IRLS_ITERATIONS);
+        if let Ok(res) = irls(&mut problem, *start, &cfg) {
+            out.push(res.state);
+        }
     }
 
     fn residual_sq(&self, t: &Isometry3<f64>, i: usize) -> f64 {
@@ -166,7 +201,8 @@ fn reprojection_px(camera: &Camera, t: &Isometry3<f64>, p: &Point3<f64>, u: &Vec
 }
 
 /// Estimates the camera pose `T_cw` from world points and their observed (distorted) pixels:
-/// P3P in LO-MSAC (threshold `threshold_px / f` in normalized coordinates), an optional prior
+/// P3P in LO-MSAC (threshold `threshold_px / f` in normalized coordinates; local optimisation
+/// by a few Huber IRLS steps on the inliers), an optional prior
 /// pose competing with the hypotheses, then Huber IRLS on the pixel reprojection error of the
 /// inliers.
 ///
@@ -243,10 +279,14 @@ pub fn solve_pnp_ransac(
         ));
     }
     let focal = 0.5 * (camera.pinhole.fx + camera.pinhole.fy);
+    let px: Vec<Vector2<f64>> = index.iter().map(|&i| pixels[i]).collect();
     let est = PnpEstimator {
         world: &world,
         bearings: &bearings,
         normalized: &normalized,
+        pixels: &px,
+        camera,
+        sigma_px: cfg.sigma_px,
     };
     let thr = cfg.threshold_px / focal;
     let rcfg = RansacConfig {
@@ -254,7 +294,6 @@ pub fn solve_pnp_ransac(
         confidence: cfg.confidence,
         max_iterations: cfg.max_iterations,
         seed: cfg.seed,
-        lo_rounds: 0,
         ..RansacConfig::default()
     };
     let found = ransac(&est, &rcfg);
@@ -286,22 +325,13 @@ pub fn solve_pnp_ransac(
         });
     }
     if cfg.refine {
-        let px: Vec<Vector2<f64>> = index.iter().map(|&i| pixels[i]).collect();
         let mut problem = Reprojection {
             camera,
             world: &world,
             pixels: &px,
             indices: &used,
         };
-        let icfg = IrlsConfig {
-            loss: Loss::Huber(1.345),
-            scale: ScaleMode::Fixed(cfg.sigma_px),
-            lm: LmConfig {
-                max_iterations: 20,
-                ..LmConfig::default()
-            },
-        };
-        if let Ok(res) = irls(&mut problem, pose, &icfg) {
+        if let Ok(res) = irls(&mut problem, pose, &huber_irls(cfg.sigma_px, 20)) {
             pose = res.state;
             covariance = res.covariance;
         }

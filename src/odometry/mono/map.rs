@@ -1,0 +1,413 @@
+//! The local map of the monocular tracker: a window of recent keyframes and the points they
+//! observe, each point with its representative descriptor and its observations.
+//!
+//! - Tracking uses every point observed by a keyframe of the window (the covisible set of the
+//!   current keyframe), not only the last keyframe's.
+//! - A new keyframe adds observations to the points it tracked, triangulates new points from
+//!   its unassigned features matched to those of the previous keyframes (DLT, checked for
+//!   cheirality, parallax and reprojection error), then refines the structure: each point
+//!   observed by two or more window keyframes is moved to minimise
+//!   `sum_k |pi(K T_ck_w P) - u_k|^2` by Gauss-Newton (poses fixed).
+//! - Culling drops points found in under a quarter of the frames that should have seen them,
+//!   points that no longer fit their observations, and points no window keyframe observes.
+
+use std::collections::{HashMap, VecDeque};
+
+use nalgebra::{Isometry3, Matrix2x3, Matrix3, Point3, Vector2, Vector3};
+use vofront_features::{match_descriptors, Descriptor, Features, MatchConfig};
+use vofront_geometry::triangulate::{parallax_deg, triangulate_dlt};
+use vofront_geometry::Camera;
+
+use crate::odometry::feature_pixel;
+
+/// Identifier of a map point.
+pub(super) type PointId = usize;
+
+/// A triangulated point.
+#[derive(Debug, Clone)]
+pub(super) struct MapPoint {
+    /// World position (map units).
+    pub position: Point3<f64>,
+    /// The observation's descriptor with the smallest total distance to the others.
+    pub descriptor: Descriptor,
+    /// Pyramid level of that observation.
+    pub level: u8,
+    /// `(keyframe id, feature index)` of every observation.
+    pub observations: Vec<(usize, u32)>,
+    /// Frames in whose image the point was predicted.
+    pub visible: u32,
+    /// Frames in which it was matched and a PnP inlier.
+    pub found: u32,
+}
+
+/// A keyframe of the window.
+#[derive(Debug, Clone)]
+pub(super) struct MapKeyframe {
+    /// Unique, increasing id.
+    pub id: usize,
+    /// Camera-to-world pose.
+    pub t_wc: Isometry3<f64>,
+    /// Its ORB features.
+    pub features: Features,
+    /// The map point of each feature.
+    pub point_of: Vec<Option<PointId>>,
+}
+
+impl MapKeyframe {
+    /// Camera centre in the world.
+    pub fn centre(&self) -> Point3<f64> {
+        Point3::from(self.t_wc.translation.vector)
+    }
+}
+
+/// Thresholds of map maintenance.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub(super) struct MapRules {
+    /// Keyframes kept in the window.
+    pub window: usize,
+    /// Keyframes before the newest one that new points are triangulated against.
+    pub triangulation_neighbours: usize,
+    /// Largest reprojection error of a point in any observation, pixels.
+    pub max_reprojection_px: f64,
+    /// Smallest parallax of a new point, degrees.
+    pub min_point_parallax_deg: f64,
+}
+
+/// Keyframes and points; see the module documentation.
+#[derive(Debug, Clone, Default)]
+pub(super) struct LocalMap {
+    /// Window of keyframes, oldest first.
+    pub keyframes: VecDeque<MapKeyframe>,
+    /// The points by id.
+    pub points: HashMap<PointId, MapPoint>,
+    next_point: PointId,
+    next_keyframe: usize,
+}
+
+/// Smallest `found / visible` of a point seen at least [`CULL_MIN_VISIBLE`] times.
+const CULL_MIN_FOUND_RATIO: f64 = 0.25;
+/// Predictions before the found ratio is judged.
+const CULL_MIN_VISIBLE: u32 = 4;
+/// Gauss-Newton iterations of the structure-only refinement of one point.
+const POINT_ITERATIONS: usize = 4;
+
+impl LocalMap {
+    /// The newest keyframe.
+    pub fn last(&self) -> Option<&MapKeyframe> {
+        self.keyframes.back()
+    }
+
+    /// Adds a keyframe with no points yet; returns its index in the window.
+    pub fn push_keyframe(&mut self, t_wc: Isometry3<f64>, features: Features) -> usize {
+        let n = features.len();
+        self.keyframes.push_back(MapKeyframe {
+            id: self.next_keyframe,
+            t_wc,
+            features,
+            point_of: vec![None; n],
+        });
+        self.next_keyframe += 1;
+        self.keyframes.len() - 1
+    }
+
+    /// A new point at `position` observed by `(window index, feature)` pairs (the first gives
+    /// its descriptor); nothing without observations.
+    pub fn add_point(&mut self, position: Point3<f64>, observed: &[(usize, u32)]) {
+        let Some(&(k0, f0)) = observed.first() else {
+            return;
+        };
+        let id = self.next_point;
+        self.next_point += 1;
+        let kf0 = &self.keyframes[k0];
+        let mut point = MapPoint {
+            position,
+            descriptor: kf0.features.descriptors[f0 as usize],
+            level: kf0.features.levels[f0 as usize],
+            observations: Vec::with_capacity(observed.len()),
+            visible: 1,
+            found: 1,
+        };
+        for &(k, f) in observed {
+            let kf = &mut self.keyframes[k];
+            kf.point_of[f as usize] = Some(id);
+            point.observations.push((kf.id, f));
+        }
+        self.points.insert(id, point);
+    }
+
+    /// Records that `point` is observed by feature `f` of the keyframe at window index `k`.
+    pub fn observe(&mut self, point: PointId, k: usize, f: u32) {
+        let kf = &mut self.keyframes[k];
+        if kf.point_of[f as usize].is_some() {
+            return;
+        }
+        if let Some(p) = self.points.get_mut(&point) {
+            kf.point_of[f as usize] = Some(point);
+            p.observations.push((kf.id, f));
+        }
+    }
+
+    /// Window index of keyframe `id`.
+    fn index_of(&self, id: usize) -> Option<usize> {
+        let first = self.keyframes.front()?.id;
+        let k = id.checked_sub(first)?;
+        (k < self.keyframes.len()).then_some(k)
+    }
+
+    /// Points observed by a window keyframe, as a feature list for matching (positions: the
+    /// points' predicted pixels under `t_cw`, NaN when not in front), their world positions
+    /// and the point id of each entry. Every point predicted inside the `width x height` image
+    /// counts as visible.
+    pub fn local_points(
+        &mut self,
+        camera: &Camera,
+        t_cw: &Isometry3<f64>,
+        (width, height): (u32, u32),
+    ) -> (Features, Vec<Option<Point3<f64>>>, Vec<PointId>) {
+        let mut ids: Vec<PointId> = self.points.keys().copied().collect();
+        ids.sort_unstable();
+        let mut query = Features::default();
+        let mut positions = Vec::with_capacity(ids.len());
+        ids.retain(|id| self.points.contains_key(id));
+        for id in &ids {
+            let Some(p) = self.points.get_mut(id) else {
+                continue;
+            };
+            let x = t_cw * p.position;
+            let uv = (x.z > 0.0)
+                .then(|| camera.project(&x.coords))
+                .flatten()
+                .filter(|u| u.x >= 0.0 && u.y >= 0.0 && u.x < width as f64 && u.y < height as f64);
+            if uv.is_some() {
+                p.visible += 1;
+            }
+            let (u, v) = uv.map_or((f32::NAN, f32::NAN), |u| (u.x as f32, u.y as f32));
+            query.xs.push(u);
+            query.ys.push(v);
+            query.levels.push(p.level);
+            // Windowed matching reads only levels and descriptors of the query.
+            query.scales.push(1.0);
+            query.angles.push(0.0);
+            query.responses.push(0.0);
+            query.descriptors.push(p.descriptor);
+            positions.push(Some(p.position));
+        }
+        (query, positions, ids)
+    }
+
+    /// Marks `point` as found (a PnP inlier) in the current frame.
+    pub fn found(&mut self, point: PointId) {
+        if let Some(p) = self.points.get_mut(&point) {
+            p.found += 1;
+        }
+    }
+
+    /// Triangulates new points between the newest keyframe and up to `rules.triangulation_
+    /// neighbours` before it, from features of both that have no point yet.
+    pub fn triangulate_new(&mut self, camera: &Camera, matching: &MatchConfig, rules: &MapRules) {
+        let Some(newest) = self.keyframes.len().checked_sub(1) else {
+            return;
+        };
+        let first = newest.saturating_sub(rules.triangulation_neighbours);
+        for other in (first..newest).rev() {
+            let free = |kf: &MapKeyframe| -> Vec<u32> {
+                (0..kf.features.len() as u32)
+                    .filter(|&f| kf.point_of[f as usize].is_none())
+                    .collect()
+            };
+            let (a, b) = (&self.keyframes[other], &self.keyframes[newest]);
+            let (free_a, free_b) = (free(a), free(b));
+            let da: Vec<Descriptor> = free_a
+                .iter()
+                .map(|&f| a.features.descriptors[f as usize])
+                .collect();
+            let db: Vec<Descriptor> = free_b
+                .iter()
+                .map(|&f| b.features.descriptors[f as usize])
+                .collect();
+            let t_ba = b.t_wc.inverse() * a.t_wc;
+            let mut new_points = Vec::new();
+            for m in match_descriptors(&da, &db, matching) {
+                let (fa, fb) = (free_a[m.query as usize], free_b[m.train as usize]);
+                let (ua, ub) = (
+                    feature_pixel(&a.features, fa),
+                    feature_pixel(&b.features, fb),
+                );
+                if let Some(x_a) = triangulate_pair(camera, &t_ba, &ua, &ub, rules) {
+                    new_points.push((a.t_wc * x_a, fa, fb));
+                }
+            }
+            for (p, fa, fb) in new_points {
+                self.add_point(p, &[(other, fa), (newest, fb)]);
+            }
+        }
+    }
+
+    /// Structure-only refinement and culling (see the module documentation), then drops the
+    /// oldest keyframes beyond `rules.window` and the points no remaining keyframe observes.
+    pub fn maintain(&mut self, camera: &Camera, rules: &MapRules) {
+        while self.keyframes.len() > rules.window {
+            self.keyframes.pop_front();
+        }
+        let first = self.keyframes.front().map_or(0, |k| k.id);
+        let mut dropped = Vec::new();
+        for (&id, p) in self.points.iter_mut() {
+            p.observations.retain(|(k, _)| *k >= first);
+            let judged = p.visible >= CULL_MIN_VISIBLE;
+            if p.observations.is_empty()
+                || (judged && (p.found as f64) < CULL_MIN_FOUND_RATIO * p.visible as f64)
+            {
+                dropped.push(id);
+            }
+        }
+        for id in dropped {
+            self.remove_point(id);
+        }
+        let ids: Vec<PointId> = self.points.keys().copied().collect();
+        for id in ids {
+            if !self.refine_point(camera, id, rules.max_reprojection_px) {
+                self.remove_point(id);
+            }
+        }
+        for id in self.points.keys().copied().collect::<Vec<_>>() {
+            self.update_descriptor(id);
+        }
+    }
+
+    /// Removes a point and its keyframe links.
+    fn remove_point(&mut self, id: PointId) {
+        let Some(p) = self.points.remove(&id) else {
+            return;
+        };
+        for (kid, f) in p.observations {
+            if let Some(k) = self.index_of(kid) {
+                self.keyframes[k].point_of[f as usize] = None;
+            }
+        }
+    }
+
+    /// Observations of `id` in the window: pose `T_cw` and pixel.
+    fn views(&self, id: PointId) -> Vec<(Isometry3<f64>, Vector2<f64>)> {
+        self.points.get(&id).map_or_else(Vec::new, |p| {
+            p.observations
+                .iter()
+                .filter_map(|&(kid, f)| {
+                    let kf = &self.keyframes[self.index_of(kid)?];
+                    Some((kf.t_wc.inverse(), feature_pixel(&kf.features, f)))
+                })
+                .collect()
+        })
+    }
+
+    /// Gauss-Newton on the point's reprojection errors (poses fixed) when it has two or more
+    /// views; false when the result is behind a camera or off by more than `max_px` in a view.
+    fn refine_point(&mut self, camera: &Camera, id: PointId, max_px: f64) -> bool {
+        let views = self.views(id);
+        let Some(p) = self.points.get_mut(&id) else {
+            return false;
+        };
+        let k = &camera.pinhole;
+        let mut x = p.position;
+        if views.len() >= 2 {
+            for _ in 0..POINT_ITERATIONS {
+                let mut h = Matrix3::zeros();
+                let mut g = Vector3::zeros();
+                for (t_cw, u) in &views {
+                    let c = t_cw * x;
+                    if c.z <= 1e-6 {
+                        return false;
+                    }
+                    let iz = 1.0 / c.z;
+                    let Some(q) = camera.project(&c.coords) else {
+                        return false;
+                    };
+                    let d_pi = Matrix2x3::new(
+                        k.fx * iz,
+                        0.0,
+                        -k.fx * c.x * iz * iz,
+                        0.0,
+                        k.fy * iz,
+                        -k.fy * c.y * iz * iz,
+                    );
+                    let j = d_pi * t_cw.rotation.to_rotation_matrix().matrix();
+                    let r = q - u;
+                    h += j.transpose() * j;
+                    g += j.transpose() * r;
+                }
+                let Some(step) = h.lu().solve(&(-g)) else {
+                    break;
+                };
+                x += step;
+                if step.norm() < 1e-9 * x.coords.norm().max(1.0) {
+                    break;
+                }
+            }
+        }
+        let fits = views.iter().all(|(t_cw, u)| {
+            let c = t_cw * x;
+            c.z > 0.0
+                && camera
+                    .project(&c.coords)
+                    .is_some_and(|q| (q - u).norm() < max_px)
+        });
+        if fits {
+            p.position = x;
+        }
+        fits
+    }
+
+    /// Sets the point's descriptor to the observation's with the least total Hamming distance
+    /// to the others (the medoid).
+    fn update_descriptor(&mut self, id: PointId) {
+        let Some(p) = self.points.get(&id) else {
+            return;
+        };
+        let obs: Vec<(Descriptor, u8)> = p
+            .observations
+            .iter()
+            .filter_map(|&(kid, f)| {
+                let kf = &self.keyframes[self.index_of(kid)?];
+                Some((
+                    kf.features.descriptors[f as usize],
+                    kf.features.levels[f as usize],
+                ))
+            })
+            .collect();
+        let best = obs
+            .iter()
+            .min_by_key(|(d, _)| obs.iter().map(|(o, _)| d.hamming(o)).sum::<u32>());
+        if let (Some(&(d, level)), Some(p)) = (best, self.points.get_mut(&id)) {
+            p.descriptor = d;
+            p.level = level;
+        }
+    }
+}
+
+/// The point (camera-a frame) seen at pixel `ua` in camera a and `ub` in camera b, with
+/// `T_ba` known: DLT, kept when in front of both, reprojecting within the bound and with
+/// enough parallax.
+pub(super) fn triangulate_pair(
+    camera: &Camera,
+    t_ba: &Isometry3<f64>,
+    ua: &Vector2<f64>,
+    ub: &Vector2<f64>,
+    rules: &MapRules,
+) -> Option<Point3<f64>> {
+    let (na, nb) = (
+        camera.pixel_to_normalized(ua)?,
+        camera.pixel_to_normalized(ub)?,
+    );
+    let (fa, fb) = (Vector3::new(na.x, na.y, 1.0), Vector3::new(nb.x, nb.y, 1.0));
+    let x_a = triangulate_dlt(t_ba, &fa, &fb)?;
+    let x_b = t_ba * x_a;
+    let reprojects = |p: &Point3<f64>, u: &Vector2<f64>| {
+        p.z > 0.0
+            && camera
+                .project(&p.coords)
+                .is_some_and(|q| (q - u).norm() < rules.max_reprojection_px)
+    };
+    (reprojects(&x_a, ua)
+        && reprojects(&x_b, ub)
+        && parallax_deg(t_ba, &x_a) >= rules.min_point_parallax_deg)
+        .then_some(x_a)
+}

@@ -1,0 +1,447 @@
+//! Monocular feature tracker: two-view initialisation, a local map of keyframes and points,
+//! PnP tracking against it.
+//!
+//! 1. Initialisation ([`init`]): the first frame with enough features is the reference; later
+//!    frames are matched to it until the parallax allows a two-view map. A frame with too few
+//!    features is skipped (never made the reference), and a reference that no longer matches
+//!    the current frame is replaced by it.
+//! 2. Tracking: every point of the local map ([`map`]: the points observed by the window of
+//!    recent keyframes) is projected with the constant-velocity prediction `pi(K T_cw' P_w)`
+//!    and matched to the current features around it; PnP RANSAC with Huber refinement
+//!    (motion-only) gives `T_cw`, `T_wc = T_cw^-1`.
+//! 3. Keyframes are decided without metric units: a new one is taken when the median parallax
+//!    of the tracked points between the last keyframe's and the current camera centres,
+//!    `angle(P - C_kf, P - C_cur)`, reaches `keyframe_parallax_deg`, when the tracked ratio
+//!    (inliers over the last keyframe's points) falls under the policy's `min_overlap`, or on
+//!    the policy's rotation and residual tests. A keyframe adds observations, triangulates new
+//!    points against its neighbours, refines the structure and culls points.
+//! 4. When PnP fails the frame is lost and initialisation starts again (from that frame if it
+//!    has enough features), placed at the motion model's guess, with the new map's scale
+//!    joined to the lost one where they overlap; when they do not, the reinitialised frame's
+//!    message says the segment is not joined.
+
+mod init;
+mod map;
+
+use std::time::Instant;
+
+use nalgebra::{Isometry3, Point3};
+use vofront_features::{Features, Match, MatchConfig, Orb, OrbConfig};
+use vofront_geometry::pnp::PnpConfig;
+use vofront_geometry::{Camera, RelativePoseConfig};
+
+use super::keyframe::{KeyframePolicy, KeyframeView};
+use super::motion::ConstantVelocity;
+use super::{ms_since, FrameEstimate, FrameQuality, Located, PointLocator, TrackStatus, Tracker};
+use crate::dataset::Frame;
+use init::{initialise, rescale, scale_to, InitRules};
+use map::{LocalMap, MapRules, PointId};
+
+/// Settings of [`MonoTracker`].
+#[derive(Debug, Clone)]
+pub struct MonoConfig {
+    /// ORB settings.
+    pub orb: OrbConfig,
+    /// Matching filters.
+    pub matching: MatchConfig,
+    /// Search radius around predicted positions, pixels.
+    pub window_px: f32,
+    /// Two-view estimation used for initialisation.
+    pub relative: RelativePoseConfig,
+    /// PnP RANSAC and refinement.
+    pub pnp: PnpConfig,
+    /// Fewest triangulated points to accept an initialisation (and fewest features for a
+    /// frame to serve one).
+    pub min_init_points: usize,
+    /// Smallest median parallax to accept an initialisation, degrees.
+    pub min_init_parallax_deg: f64,
+    /// Fewest PnP inliers for a tracked frame.
+    pub min_inliers: usize,
+    /// Rotation, tracked-ratio (`min_overlap`) and residual tests of the keyframe decision;
+    /// its metric translation test is off by default (map units mean nothing in monocular).
+    pub keyframe: KeyframePolicy,
+    /// Largest reprojection error of a point in any of its observations, pixels.
+    pub max_reprojection_px: f64,
+    /// Smallest parallax of a new point, degrees.
+    pub min_point_parallax_deg: f64,
+    /// Median parallax of the tracked points against the last keyframe that triggers a new
+    /// keyframe, degrees.
+    pub keyframe_parallax_deg: f64,
+    /// Keyframes in the local map.
+    pub window: usize,
+    /// Earlier keyframes a new keyframe triangulates new points against.
+    pub triangulation_neighbours: usize,
+    /// Frames an initialisation waits for parallax before taking a newer reference.
+    pub max_init_frames: usize,
+    /// Fewest old-map points matched to the new map to join their scales after a loss.
+    pub min_scale_matches: usize,
+}
+
+impl Default for MonoConfig {
+    fn default() -> Self {
+        Self {
+            orb: OrbConfig {
+                n_features: 1500,
+                ..OrbConfig::default()
+            },
+            matching: MatchConfig {
+                ratio: Some(0.8),
+                ..MatchConfig::default()
+            },
+            window_px: 24.0,
+            relative: RelativePoseConfig::default(),
+            pnp: PnpConfig::default(),
+            min_init_points: 80,
+            min_init_parallax_deg: 1.0,
+            min_inliers: 25,
+            keyframe: KeyframePolicy {
+                max_relative_translation: f64::INFINITY,
+                min_overlap: 0.5,
+                ..KeyframePolicy::default()
+            },
+            max_reprojection_px: 2.0,
+            min_point_parallax_deg: 0.5,
+            keyframe_parallax_deg: 1.0,
+            window: 5,
+            triangulation_neighbours: 2,
+            max_init_frames: 30,
+            min_scale_matches: 12,
+        }
+    }
+}
+
+/// Search window of the retry after a failed tracking attempt, in units of `window_px`.
+const WIDE_WINDOW_FACTOR: f32 = 4.0;
+
+/// Median over points `P` of the parallax angle `angle(P - c1, P - c2)`, degrees (0 without
+/// points).
+fn median_parallax_deg<'a>(
+    c1: &Point3<f64>,
+    c2: &Point3<f64>,
+    points: impl Iterator<Item = &'a Point3<f64>>,
+) -> f64 {
+    let mut angles: Vec<f64> = points
+        .map(|p| (p - c1).angle(&(p - c2)).to_degrees())
+        .collect();
+    crate::robust::median_in_place(&mut angles).unwrap_or(0.0)
+}
+
+enum State {
+    /// Nothing seen yet, or just lost on a frame that could not serve as a reference.
+    Empty,
+    /// Waiting for enough parallax against `reference`.
+    Initialising {
+        reference: Features,
+        t_wc: Isometry3<f64>,
+        frames: usize,
+    },
+    /// Tracking against the local map; the residual of the first frame after its keyframe.
+    Tracking {
+        map: LocalMap,
+        first_residual: Option<f64>,
+    },
+}
+
+/// Monocular ORB tracker with an arbitrary but consistent scale (per initialisation).
+pub struct MonoTracker {
+    cfg: MonoConfig,
+    orb: Orb,
+    camera: Camera,
+    state: State,
+    motion: ConstantVelocity,
+    initialised_once: bool,
+    /// The map before tracking was lost: its points set the scale of the next map.
+    lost_map: Option<LocalMap>,
+}
+
+impl MonoTracker {
+    /// A tracker for frames of `camera`; fails on an invalid ORB configuration.
+    pub fn new(camera: Camera, cfg: MonoConfig) -> Result<Self, vofront_features::FeatureError> {
+        let orb = Orb::new(cfg.orb.clone())?;
+        Ok(Self {
+            cfg,
+            orb,
+            camera,
+            state: State::Empty,
+            motion: ConstantVelocity::default(),
+            initialised_once: false,
+            lost_map: None,
+        })
+    }
+
+    fn estimate(
+        pose_wc: Isometry3<f64>,
+        status: TrackStatus,
+        quality: FrameQuality,
+        message: Option<String>,
+        start: Instant,
+    ) -> FrameEstimate {
+        FrameEstimate {
+            pose_wc,
+            status,
+            quality: FrameQuality {
+                ms: ms_since(start),
+                ..quality
+            },
+            message,
+        }
+    }
+
+    fn map_rules(&self) -> MapRules {
+        MapRules {
+            window: self.cfg.window.max(2),
+            triangulation_neighbours: self.cfg.triangulation_neighbours.max(1),
+            max_reprojection_px: self.cfg.max_reprojection_px,
+            min_point_parallax_deg: self.cfg.min_point_parallax_deg,
+        }
+    }
+
+    /// Tracks `current` against the local map from the prediction; a failure loses the map.
+    fn track_map(
+        &mut self,
+        mut map: LocalMap,
+        first_residual: Option<f64>,
+        current: Features,
+        size: (u32, u32),
+        predicted: Isometry3<f64>,
+        start: Instant,
+    ) -> FrameEstimate {
+        let (query, positions, ids) = map.local_points(&self.camera, &predicted.inverse(), size);
+        let locate = |window_px: f32| {
+            let locator = PointLocator {
+                camera: &self.camera,
+                matching: &self.cfg.matching,
+                window_px,
+                pnp: &self.cfg.pnp,
+                min_inliers: self.cfg.min_inliers,
+            };
+            locator.locate(&query, &positions, &current, predicted.inverse())
+        };
+        // A motion change the prediction missed (the start of a turn) moves the points out of
+        // the search window: one retry with a wider window before the frame is lost.
+        let mut located = locate(self.cfg.window_px);
+        if located.fit.is_err() {
+            located = locate(self.cfg.window_px * WIDE_WINDOW_FACTOR);
+        }
+        let Located {
+            matches,
+            points: world,
+            fit,
+        } = located;
+        let fit = match fit {
+            Ok(fit) => fit,
+            Err(why) => {
+                self.lost_map = Some(map);
+                if current.len() >= self.cfg.min_init_points {
+                    self.state = State::Initialising {
+                        reference: current,
+                        t_wc: predicted,
+                        frames: 0,
+                    };
+                }
+                self.motion.reset_velocity();
+                let quality = FrameQuality::default();
+                return Self::estimate(predicted, TrackStatus::Lost, quality, Some(why), start);
+            }
+        };
+        let t_wc = fit.pose.inverse();
+        self.motion.update(t_wc);
+        let tracked: Vec<(Match, PointId, Point3<f64>)> = matches
+            .iter()
+            .zip(&world)
+            .zip(&fit.inliers)
+            .filter(|(_, inlier)| **inlier)
+            .map(|((m, p), _)| (*m, ids[m.query as usize], *p))
+            .collect();
+        for (_, id, _) in &tracked {
+            map.found(*id);
+        }
+        let Some(last) = map.last() else {
+            return Self::estimate(
+                predicted,
+                TrackStatus::Lost,
+                FrameQuality::default(),
+                Some("empty map".into()),
+                start,
+            );
+        };
+        let last_points = last.point_of.iter().flatten().count();
+        let t_kf_w = last.t_wc.inverse();
+        let mut depths: Vec<f64> = tracked.iter().map(|(_, _, p)| (t_kf_w * p).z).collect();
+        let first_residual = first_residual.unwrap_or(fit.rmse_px);
+        let view = KeyframeView {
+            t_cur_kf: fit.pose * last.t_wc,
+            median_depth: crate::robust::median_in_place(&mut depths).unwrap_or(1.0),
+            overlap: tracked.len() as f64 / last_points.max(1) as f64,
+            residual: fit.rmse_px,
+            first_residual,
+        };
+        let parallax = median_parallax_deg(
+            &last.centre(),
+            &Point3::from(t_wc.translation.vector),
+            tracked.iter().map(|(_, _, p)| p),
+        );
+        let keyframe =
+            parallax >= self.cfg.keyframe_parallax_deg || self.cfg.keyframe.needs_keyframe(&view);
+        let quality = FrameQuality {
+            inliers: fit.inlier_count,
+            inlier_ratio: fit.inlier_count as f64 / matches.len().max(1) as f64,
+            rmse: fit.rmse_px,
+            iterations: fit.iterations,
+            covariance_trace: fit.covariance.map(|c| c.trace()),
+            keyframe,
+            ms: 0.0,
+        };
+        let first_residual = if keyframe {
+            let rules = self.map_rules();
+            let k = map.push_keyframe(t_wc, current);
+            for (m, id, _) in &tracked {
+                map.observe(*id, k, m.train);
+            }
+            map.triangulate_new(&self.camera, &self.cfg.matching, &rules);
+            map.maintain(&self.camera, &rules);
+            None
+        } else {
+            Some(first_residual)
+        };
+        self.state = State::Tracking {
+            map,
+            first_residual,
+        };
+        Self::estimate(t_wc, TrackStatus::Ok, quality, None, start)
+    }
+
+    /// The map initialised from the reference at `t_w1` becomes the tracked map, its scale
+    /// joined to the lost map's where they overlap.
+    fn start_map(
+        &mut self,
+        mut map: LocalMap,
+        t_w1: &Isometry3<f64>,
+        quality: FrameQuality,
+        start: Instant,
+    ) -> FrameEstimate {
+        let (status, message) = if self.initialised_once {
+            let joined = self.lost_map.take().and_then(|old| {
+                scale_to(
+                    &old,
+                    &map,
+                    t_w1,
+                    &self.cfg.matching,
+                    self.cfg.min_scale_matches,
+                )
+            });
+            let message = match joined {
+                Some(s) => {
+                    rescale(&mut map, t_w1, s);
+                    format!("new map, scale {s:.3} joined to the lost one")
+                }
+                None => "new map, scale not joined to the lost one (segment break)".into(),
+            };
+            (TrackStatus::Reinitialised, Some(message))
+        } else {
+            (TrackStatus::Ok, None)
+        };
+        self.initialised_once = true;
+        let pose = map.last().map_or(*t_w1, |kf| kf.t_wc);
+        self.motion.update(pose);
+        self.motion.reset_velocity();
+        self.state = State::Tracking {
+            map,
+            first_residual: None,
+        };
+        Self::estimate(pose, status, quality, message, start)
+    }
+
+    /// A frame reported lost at the prediction, with the reason.
+    fn skipped(predicted: Isometry3<f64>, why: String, start: Instant) -> FrameEstimate {
+        Self::estimate(
+            predicted,
+            TrackStatus::Lost,
+            FrameQuality::default(),
+            Some(why),
+            start,
+        )
+    }
+}
+
+impl Tracker for MonoTracker {
+    fn track(&mut self, frame: &Frame) -> FrameEstimate {
+        let start = Instant::now();
+        let predicted = self.motion.predict().unwrap_or_else(Isometry3::identity);
+        let current = match self.orb.detect_and_describe(&frame.image) {
+            Ok(f) => f,
+            Err(e) => return Self::skipped(predicted, e.to_string(), start),
+        };
+        let tracking = matches!(self.state, State::Tracking { .. });
+        if !tracking && current.len() < self.cfg.min_init_points {
+            // A featureless frame can neither start nor serve an initialisation: skip it.
+            let why = format!(
+                "initialising: {} features, {} needed (frame skipped)",
+                current.len(),
+                self.cfg.min_init_points
+            );
+            return Self::skipped(predicted, why, start);
+        }
+        match std::mem::replace(&mut self.state, State::Empty) {
+            State::Empty => {
+                let first = !self.initialised_once && self.motion.predict().is_none();
+                self.state = State::Initialising {
+                    reference: current,
+                    t_wc: predicted,
+                    frames: 0,
+                };
+                if first {
+                    // The first frame defines the world frame: it is tracked by definition.
+                    self.motion.update(predicted);
+                    let quality = FrameQuality {
+                        keyframe: true,
+                        ..FrameQuality::default()
+                    };
+                    Self::estimate(predicted, TrackStatus::Ok, quality, None, start)
+                } else {
+                    Self::skipped(predicted, "initialising: new reference".into(), start)
+                }
+            }
+            State::Initialising {
+                reference,
+                t_wc,
+                frames,
+            } => {
+                let rules = InitRules {
+                    camera: &self.camera,
+                    matching: &self.cfg.matching,
+                    relative: &self.cfg.relative,
+                    min_points: self.cfg.min_init_points,
+                    min_parallax_deg: self.cfg.min_init_parallax_deg,
+                };
+                match initialise(&rules, &reference, &t_wc, &current) {
+                    Ok((map, quality)) => self.start_map(map, &t_wc, quality, start),
+                    Err(failure) => {
+                        let keep = failure.keep_reference && frames < self.cfg.max_init_frames;
+                        self.state = if keep {
+                            State::Initialising {
+                                reference,
+                                t_wc,
+                                frames: frames + 1,
+                            }
+                        } else {
+                            State::Initialising {
+                                reference: current,
+                                t_wc: predicted,
+                                frames: 0,
+                            }
+                        };
+                        Self::skipped(predicted, failure.why, start)
+                    }
+                }
+            }
+            State::Tracking {
+                map,
+                first_residual,
+            } => {
+                let size = frame.image.dimensions();
+                self.track_map(map, first_residual, current, size, predicted, start)
+            }
+        }
+    }
+}
