@@ -95,7 +95,11 @@ fn two_view_json_matches_the_true_motion() {
         .keys()
         .map(|k| k.as_str())
         .collect();
-    assert_eq!(keys.len(), 3, "{keys:?}");
+    assert_eq!(keys.len(), 4, "{keys:?}");
+    assert!(json["recommended"]["why"].is_string(), "{json}");
+    for method in ["feature", "direct_translation", "direct_se3"] {
+        assert!(json[method]["quality"]["verdict"].is_string(), "{json}");
+    }
 
     let f = &json["feature"];
     let rot = rotation_error_deg(&matrix(&f["R"]), &truth.rotation);
@@ -211,6 +215,23 @@ fn relpose_recovers_the_pose_from_a_csv() {
             .to_degrees()
             < 1.0
     );
+    assert_eq!(json["quality"]["verdict"], "ok", "{json}");
+
+    // Uniformly random correspondences: never an `ok` pose (exit 4 with the verdict, or 1).
+    let mut csv = String::from("x1,y1,x2,y2\n");
+    for _ in 0..300 {
+        let (a, b, c, d) = (uniform(), uniform(), uniform(), uniform());
+        csv += &format!("{},{},{},{}\n", a * 640.0, b * 480.0, c * 640.0, d * 480.0);
+    }
+    std::fs::write(dir.join("random.csv"), csv).unwrap();
+    let out = vofront(&["relpose", "random.csv", "--json"], &dir);
+    match out.status.code() {
+        Some(4) => {
+            let json: Value = serde_json::from_slice(&out.stdout).unwrap();
+            assert_ne!(json["quality"]["verdict"], "ok", "{json}");
+        }
+        code => assert_eq!(code, Some(1), "{}", String::from_utf8_lossy(&out.stdout)),
+    }
     std::fs::remove_dir_all(&dir).ok();
 }
 

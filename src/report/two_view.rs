@@ -238,7 +238,11 @@ pub fn estimate(inputs: &Inputs) -> Outcome {
         timed(|| align_translation(&p1, &p2, &TranslationConfig::default()))
     });
     let translation_quality = match &translation {
-        Some(Ok((d, _))) => Some(d.quality(pixels, variances(), &quality_cfg)),
+        Some(Ok((d, _))) => Some(d.quality(
+            &gray_plane(&inputs.img1),
+            &gray_plane(&inputs.img2),
+            &quality_cfg,
+        )),
         _ => None,
     };
     let mut se3_reference = None;

@@ -1,9 +1,11 @@
 //! The quality record ([`vofront_robust::Quality`]) of each direct estimate.
 //!
-//! A photometric fit is better than chance when it explains the images: its residual variance
-//! `rmse^2` must stay under [`CHANCE_RESIDUAL_SHARE`] of `var(I1) + var(I2)`, the residual
-//! variance of two unrelated images with the same statistics, and under
-//! [`FIT_RESIDUAL_SHARE`] of it for the fit to count as explaining the pair. Support is the number of valid pixels;
+//! A photometric fit is better than chance when it explains the images: for a 2D shift, the
+//! mean squared difference at the shift must stay under [`CHANCE_RESIDUAL_SHARE`] of its value
+//! at shifts that carry no alignment ([`shift_chance_share`]); for SE(3) and warps, the
+//! residual variance `rmse^2` under that share of `var(I1) + var(I2)` (the residual variance
+//! of two unrelated images with the same statistics). Under [`FIT_RESIDUAL_SHARE`] the fit
+//! explains the pair; between the two it is [`Reason::HighResidual`]. Support is the number of valid pixels;
 //! the covariance is the aligner's Gauss-Newton `sigma^2 H^-1`.
 
 use vofront_robust::quality::{block_rows, rms_of};
@@ -44,14 +46,7 @@ pub fn intensity_variance(p: &Plane) -> f64 {
 /// `NotBetterThanChance` when `rmse^2 > CHANCE_RESIDUAL_SHARE * variances`, else
 /// `HighResidual` when `rmse^2 > FIT_RESIDUAL_SHARE * variances`.
 fn photometric_flags(rmse: f64, variances: f64) -> Vec<Reason> {
-    let share = rmse * rmse / variances;
-    if !(share <= CHANCE_RESIDUAL_SHARE) {
-        vec![Reason::NotBetterThanChance]
-    } else if share > FIT_RESIDUAL_SHARE {
-        vec![Reason::HighResidual]
-    } else {
-        Vec::new()
-    }
+    share_flags(rmse * rmse / variances)
 }
 
 /// Support of `pixels` valid residuals out of `candidates` pixels.
@@ -62,10 +57,73 @@ fn pixel_support(pixels: usize, candidates: usize) -> Support {
     }
 }
 
+/// Grid step of [`shift_chance_share`], pixels.
+const CHANCE_GRID: usize = 4;
+
+/// Mean squared difference `I1(x) - I2(x + d)` over a grid of `x` whose `x + d` falls inside
+/// `I2` (bilinear), `None` without overlap.
+fn mean_sq_difference(p1: &Plane, p2: &Plane, d: (f32, f32)) -> Option<f64> {
+    let (w, h) = p1.size();
+    let (mut sum, mut n) = (0.0f64, 0usize);
+    for y in (0..h).step_by(CHANCE_GRID) {
+        for x in (0..w).step_by(CHANCE_GRID) {
+            if let Some(v) = p2.sample(x as f32 + d.0, y as f32 + d.1) {
+                let r = (p1.at(x, y) - v) as f64;
+                sum += r * r;
+                n += 1;
+            }
+        }
+    }
+    (n > 0).then(|| sum / n as f64)
+}
+
+/// The mean squared difference of `I1(x)` and `I2(x + d)` over its median at eight shifts of
+/// a quarter image (placements that carry no alignment): near 0 for an aligned pair, near 1
+/// for a shift no better than chance.
+pub fn shift_chance_share(p1: &Plane, p2: &Plane, d: (f64, f64)) -> f64 {
+    let (w, h) = p1.size();
+    let (qx, qy) = (w as f32 / 4.0, h as f32 / 4.0);
+    let mut chance: Vec<f64> = [
+        (-1, -1),
+        (0, -1),
+        (1, -1),
+        (-1, 0),
+        (1, 0),
+        (-1, 1),
+        (0, 1),
+        (1, 1),
+    ]
+    .iter()
+    .filter_map(|&(i, j)| mean_sq_difference(p1, p2, (i as f32 * qx, j as f32 * qy)))
+    .collect();
+    chance.sort_by(f64::total_cmp);
+    match (
+        mean_sq_difference(p1, p2, (d.0 as f32, d.1 as f32)),
+        chance.get(chance.len() / 2),
+    ) {
+        (Some(at_d), Some(&c)) if c > 0.0 => at_d / c,
+        _ => f64::INFINITY,
+    }
+}
+
+/// `NotBetterThanChance` when a residual share (see [`photometric_flags`]) exceeds
+/// [`CHANCE_RESIDUAL_SHARE`], `HighResidual` when it exceeds [`FIT_RESIDUAL_SHARE`].
+fn share_flags(share: f64) -> Vec<Reason> {
+    if share.is_nan() || share > CHANCE_RESIDUAL_SHARE {
+        vec![Reason::NotBetterThanChance]
+    } else if share > FIT_RESIDUAL_SHARE {
+        vec![Reason::HighResidual]
+    } else {
+        Vec::new()
+    }
+}
+
 impl TranslationResult {
-    /// Quality of a 2D shift over images of `image_pixels` pixels whose intensity variances
-    /// sum to `variances` ([`intensity_variance`]); `sigma` is the RMS residual, grey levels.
-    pub fn quality(&self, image_pixels: usize, variances: f64, cfg: &QualityConfig) -> Quality {
+    /// Quality of the 2D shift between `p1` and `p2`; the chance test is
+    /// [`shift_chance_share`] on the raw images; `sigma` is the RMS residual, grey levels.
+    pub fn quality(&self, p1: &Plane, p2: &Plane, cfg: &QualityConfig) -> Quality {
+        let (w, h) = p1.size();
+        let image_pixels = w * h;
         let pixels = (self.used_fraction * image_pixels as f64).round() as usize;
         let uncertainty = match &self.covariance {
             Some(cov) => Uncertainty {
@@ -81,7 +139,7 @@ impl TranslationResult {
             self.iterations.iter().sum(),
             self.converged,
             uncertainty,
-            &photometric_flags(self.rmse, variances),
+            &share_flags(shift_chance_share(p1, p2, (self.d.x, self.d.y))),
             cfg,
         )
     }

@@ -271,7 +271,10 @@ impl Quality {
         if support.pixels.is_some_and(|p| p < cfg.min_pixels) {
             reasons.push(Reason::TooFewPixels);
         }
-        if support.log10_nfa.is_some_and(|l| !(l <= cfg.max_log10_nfa)) {
+        if support
+            .log10_nfa
+            .is_some_and(|l| l.is_nan() || l > cfg.max_log10_nfa)
+        {
             reasons.push(Reason::NotBetterThanChance);
         }
         if !converged {
@@ -279,7 +282,7 @@ impl Quality {
         }
         if uncertainty
             .rotation_sigma_deg
-            .is_some_and(|s| !(s <= cfg.max_rotation_sigma_deg))
+            .is_some_and(|s| s.is_nan() || s > cfg.max_rotation_sigma_deg)
         {
             reasons.push(Reason::LargeUncertainty);
         }

@@ -20,7 +20,11 @@
 //!    gated set is stable); final inliers and points from the refined pose;
 //! 6. a median parallax under `min_parallax_deg` flags `low_parallax` (translation direction
 //!    poorly determined); when a rotation alone explains at least 90% of the model's inliers
-//!    the motion is a pure rotation: least-squares rotation of the rays, zero translation.
+//!    the motion is a pure rotation: least-squares rotation of the rays, zero translation;
+//! 7. the quality record ([`RelativePose::quality`]): fewer than five final inliers is
+//!    [`GeometryError::NoModel`]; otherwise support, the a-contrario chance test and the
+//!    covariance `sigma^2 (J^T J)^-1` of `(R, t)` from the Sampson Jacobian on the refit's
+//!    gated correspondences decide `ok`, `unreliable` or `failed`.
 
 mod estimators;
 mod quality;
