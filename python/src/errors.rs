@@ -29,7 +29,8 @@ pub fn failed(e: impl std::fmt::Display) -> PyErr {
     VofrontError::new_err(e.to_string())
 }
 
-fn io_error(e: &io::Error, msg: String) -> PyErr {
+/// An I/O error: `FileNotFoundError` when the file is missing, `OSError` otherwise.
+pub fn io_error(e: &io::Error, msg: String) -> PyErr {
     if e.kind() == io::ErrorKind::NotFound {
         PyFileNotFoundError::new_err(msg)
     } else {

@@ -12,6 +12,7 @@ mod direct;
 mod errors;
 mod eval;
 mod features;
+mod input;
 mod odometry;
 mod two_view;
 
@@ -32,6 +33,8 @@ fn _vofront(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(odometry::run_odometry, m)?)?;
     m.add_function(wrap_pyfunction!(eval::ate, m)?)?;
     m.add_function(wrap_pyfunction!(eval::rpe, m)?)?;
+    m.add_function(wrap_pyfunction!(input::load_gray, m)?)?;
+    m.add_function(wrap_pyfunction!(input::load_depth, m)?)?;
     m.add("__version__", env!("CARGO_PKG_VERSION"))?;
     Ok(())
 }

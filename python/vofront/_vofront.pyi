@@ -21,6 +21,12 @@ TrajectoryLike = Union[str, PathLike, ArrayLike]
 class VofrontError(ValueError):
     """An estimator failed on valid input; the message is the library's."""
 
+def load_gray(path: Union[str, PathLike]) -> npt.NDArray[np.uint8]:
+    """A PNG or JPEG file as (H, W) uint8 grey (Rec. 601 luma), as ``vofront two-view`` reads it."""
+
+def load_depth(path: Union[str, PathLike], depth_scale: float = 5000.0) -> npt.NDArray[np.float32]:
+    """A 16-bit depth PNG as (H, W) float32 metres (value / depth_scale, 0 = unknown)."""
+
 def two_view(
     img1: Image,
     img2: Image,
