@@ -17,6 +17,7 @@ pub mod input;
 pub mod odometry;
 pub mod pipeline;
 pub mod presets;
+pub mod report;
 pub mod trajectory;
 
 pub use vofront_direct as direct;

@@ -114,6 +114,16 @@ pub enum Method {
     All,
 }
 
+impl From<Method> for vofront::report::two_view::Method {
+    fn from(m: Method) -> Self {
+        match m {
+            Method::Feature => Self::Feature,
+            Method::Direct => Self::Direct,
+            Method::All => Self::All,
+        }
+    }
+}
+
 /// Flags of `vofront two-view`.
 #[derive(Debug, Args)]
 pub struct TwoViewArgs {

@@ -1,179 +1,20 @@
 //! `vofront two-view`: feature and direct estimates of one frame pair, as text or JSON, with
-//! pictures. The demo reuses [`estimate`], [`print_text`] and [`write_pictures`].
+//! pictures. The estimation and the JSON live in [`vofront::report::two_view`]; the demo
+//! reuses [`print_text`] and [`write_pictures`].
 
 use std::path::Path;
-use std::time::Instant;
 
 use image::GrayImage;
-use nalgebra::{Isometry3, Matrix3};
-use serde_json::{json, Value};
-use vofront::direct::{
-    align_se3, align_translation, photometric_residual_map, DirectError, RgbdFrame, Se3Config,
-    Se3Result, TranslationConfig, TranslationResult,
-};
+use vofront::direct::photometric_residual_map;
 use vofront::draw;
-use vofront::geometry::{Camera, Model};
-use vofront::input::{load_depth, load_gray, DepthMap};
-use vofront::pipeline::{depth_plane, gray_plane, FeaturePose, FeatureTracker};
+use vofront::input::{load_depth, load_gray};
+use vofront::pipeline::gray_plane;
+pub use vofront::report::two_view::{estimate, to_json, Inputs, Outcome};
 
-use crate::args::{Method, TwoViewArgs};
+use crate::args::TwoViewArgs;
 
 /// Most match lines drawn in `matches.png`.
 const MAX_MATCH_LINES: usize = 250;
-
-/// What the estimators get.
-pub struct Inputs {
-    /// Frame 1, grey.
-    pub img1: GrayImage,
-    /// Frame 2, grey.
-    pub img2: GrayImage,
-    /// Metric depth of frame 1, enabling SE(3) direct alignment.
-    pub depth1: Option<DepthMap>,
-    /// Camera of both frames.
-    pub camera: Camera,
-    /// Which estimators run.
-    pub method: Method,
-    /// ORB budget per image.
-    pub features: usize,
-}
-
-/// A direct estimate with its wall-clock time in milliseconds.
-pub type Timed<T> = (T, f64);
-
-/// Each estimator's result or error message; `None` where it did not run.
-pub struct Outcome {
-    /// Feature-based relative pose.
-    pub feature: Option<Result<FeaturePose, String>>,
-    /// Direct 2D translation.
-    pub translation: Option<Result<Timed<TranslationResult>, String>>,
-    /// Direct SE(3) alignment with the depth of frame 1.
-    pub se3: Option<Result<Timed<Se3Result>, String>>,
-    /// The reference frame (undistorted image and depth of frame 1) `se3` was aligned against.
-    pub se3_reference: Option<RgbdFrame>,
-}
-
-impl Outcome {
-    /// True when at least one estimator produced an estimate.
-    pub fn any_estimate(&self) -> bool {
-        matches!(self.feature, Some(Ok(_)))
-            || matches!(self.translation, Some(Ok(_)))
-            || matches!(self.se3, Some(Ok(_)))
-    }
-}
-
-fn timed<T, E: std::fmt::Display>(f: impl FnOnce() -> Result<T, E>) -> Result<Timed<T>, String> {
-    let start = Instant::now();
-    let out = f().map_err(|e| e.to_string())?;
-    Ok((out, start.elapsed().as_secs_f64() * 1e3))
-}
-
-fn check_same_size(a: &GrayImage, b: (u32, u32), what: &str) -> Result<(), String> {
-    if a.dimensions() == b {
-        Ok(())
-    } else {
-        Err(format!(
-            "image size {}x{} differs from {what} size {}x{}",
-            a.width(),
-            a.height(),
-            b.0,
-            b.1
-        ))
-    }
-}
-
-/// Runs the estimators `inputs.method` asks for; each fails on its own.
-pub fn estimate(inputs: &Inputs) -> Outcome {
-    let run_feature = inputs.method != Method::Direct;
-    let run_direct = inputs.method != Method::Feature;
-    let feature = run_feature.then(|| {
-        FeatureTracker::with_features(inputs.features)
-            .relative_pose(&inputs.img1, &inputs.img2, &inputs.camera)
-            .map_err(|e| e.to_string())
-    });
-    let translation = run_direct.then(|| {
-        check_same_size(&inputs.img1, inputs.img2.dimensions(), "frame 2")?;
-        let (p1, p2) = (gray_plane(&inputs.img1), gray_plane(&inputs.img2));
-        timed(|| align_translation(&p1, &p2, &TranslationConfig::default()))
-    });
-    let mut se3_reference = None;
-    let se3 = run_direct
-        .then_some(())
-        .and(inputs.depth1.as_ref())
-        .map(|depth| {
-            check_same_size(&inputs.img1, inputs.img2.dimensions(), "frame 2")?;
-            check_same_size(&inputs.img1, depth.dimensions(), "depth")?;
-            let current = gray_plane(&inputs.img2);
-            let ((fit, reference), ms) = timed(|| {
-                let reference =
-                    RgbdFrame::new(gray_plane(&inputs.img1), depth_plane(depth), &inputs.camera)?;
-                let prior = Isometry3::identity();
-                let fit = align_se3(&reference, &current, &prior, &Se3Config::default())?;
-                Ok::<_, DirectError>((fit, reference))
-            })?;
-            se3_reference = Some(reference);
-            Ok((fit, ms))
-        });
-    Outcome {
-        feature,
-        translation,
-        se3,
-        se3_reference,
-    }
-}
-
-fn rows(m: &Matrix3<f64>) -> Value {
-    json!([
-        [m[(0, 0)], m[(0, 1)], m[(0, 2)]],
-        [m[(1, 0)], m[(1, 1)], m[(1, 2)]],
-        [m[(2, 0)], m[(2, 1)], m[(2, 2)]]
-    ])
-}
-
-fn rotation_matrix(pose: &Isometry3<f64>) -> Matrix3<f64> {
-    pose.rotation.to_rotation_matrix().into_inner()
-}
-
-fn or_error<T>(r: &Result<T, String>, f: impl FnOnce(&T) -> Value) -> Value {
-    match r {
-        Ok(v) => f(v),
-        Err(e) => json!({ "error": e }),
-    }
-}
-
-/// The JSON object of the public interface: keys `feature`, `direct_translation`, `direct_se3`.
-pub fn to_json(outcome: &Outcome) -> Value {
-    let mut out = serde_json::Map::new();
-    if let Some(r) = &outcome.feature {
-        out.insert("feature".into(), or_error(r, |f| {
-            let e = &f.estimate;
-            let t = e.translation;
-            json!({
-                "R": rows(&rotation_matrix(&e.pose)),
-                "t": [t.x, t.y, t.z],
-                "keypoints": [f.features[0].len(), f.features[1].len()],
-                "matches": f.matches.len(),
-                "inliers": e.inlier_count,
-                "model": match e.model { Model::Essential => "essential", Model::Homography => "homography" },
-                "parallax_deg": e.parallax_deg,
-                "ms": {"detect": f.timings.detect, "match": f.timings.matching,
-                       "estimate": f.timings.estimate, "total": f.timings.total},
-            })
-        }));
-    }
-    if let Some(r) = &outcome.translation {
-        out.insert("direct_translation".into(), or_error(r, |(d, ms)| {
-            json!({"d": [d.d.x, d.d.y], "iterations": d.iterations.iter().sum::<usize>(), "rmse": d.rmse, "ms": ms})
-        }));
-    }
-    if let Some(r) = &outcome.se3 {
-        out.insert("direct_se3".into(), or_error(r, |(s, ms)| {
-            let t = s.pose.translation.vector;
-            json!({"R": rows(&rotation_matrix(&s.pose)), "t": [t.x, t.y, t.z], "a": s.a, "b": s.b,
-                   "inlier_ratio": s.inlier_ratio, "rmse": s.rmse, "ms": ms})
-        }));
-    }
-    Value::Object(out)
-}
 
 /// Human-readable report, one block per estimator, with what its quality numbers mean.
 pub fn print_text(outcome: &Outcome) {
@@ -338,7 +179,7 @@ pub fn run(args: &TwoViewArgs) -> Result<bool, String> {
         img2,
         depth1,
         camera,
-        method: args.method,
+        method: args.method.into(),
         features: args.features,
     };
     let outcome = estimate(&inputs);

@@ -1,0 +1,47 @@
+//! What the command line prints, as library types: every report here derives
+//! `serde::Serialize`, and the `vofront` program's JSON is exactly their serialisation, so a
+//! library user gets the same record as a shell user.
+//!
+//! - [`two_view`]: feature and direct estimates of one frame pair ([`two_view::estimate`],
+//!   [`two_view::TwoViewReport`], the `two-view` command's JSON).
+
+pub mod two_view;
+
+use nalgebra::{Isometry3, Matrix3};
+use serde::Serialize;
+
+/// A 3x3 matrix as three rows, the JSON layout of every rotation `R`.
+pub type Rows3 = [[f64; 3]; 3];
+
+/// Rows of `m`: `rows(m)[i][j] = m[(i, j)]`.
+pub fn rows(m: &Matrix3<f64>) -> Rows3 {
+    std::array::from_fn(|i| std::array::from_fn(|j| m[(i, j)]))
+}
+
+/// Rotation matrix `R` of `x2 = R x1 + t`, as rows.
+pub fn rotation_rows(pose: &Isometry3<f64>) -> Rows3 {
+    rows(&pose.rotation.to_rotation_matrix().into_inner())
+}
+
+/// One estimator's entry: its report, or `{"error": "..."}` when it failed.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+#[serde(untagged)]
+pub enum Entry<T> {
+    /// The estimator produced an estimate.
+    Ok(T),
+    /// The estimator failed; the message says why.
+    Failed {
+        /// One-line reason.
+        error: String,
+    },
+}
+
+impl<T> Entry<T> {
+    /// The report of `r`, built by `f`, or the error's message.
+    pub fn of<V>(r: &Result<V, String>, f: impl FnOnce(&V) -> T) -> Self {
+        match r {
+            Ok(v) => Entry::Ok(f(v)),
+            Err(e) => Entry::Failed { error: e.clone() },
+        }
+    }
+}
