@@ -65,6 +65,14 @@ impl Image {
         }
     }
 
+    /// Like [`Image::gray8`], consuming the image (no copy of a `uint8` input).
+    pub fn into_gray8(self) -> GrayImage {
+        match self {
+            Image::Gray8(g) => g,
+            Image::Float(_) => self.gray8().into_owned(),
+        }
+    }
+
     /// The `f32` plane the direct aligners take.
     pub fn plane(&self) -> Cow<'_, Plane> {
         match self {

@@ -139,7 +139,7 @@ impl Odometry {
         depth: Option<&Bound<'py, PyAny>>,
         timestamp: Option<f64>,
     ) -> PyResult<Bound<'py, PyDict>> {
-        let img = self::image(image, "image")?.gray8().into_owned();
+        let img = self::image(image, "image")?.into_gray8();
         let depth = match depth.filter(|d| !d.is_none()) {
             Some(d) => Some(self::depth(d, self.depth_scale, "depth")?),
             None if self.method.needs_depth() => {
