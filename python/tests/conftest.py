@@ -70,6 +70,14 @@ def pairs(tmp_path_factory) -> list:
 
 
 @pytest.fixture(scope="session")
+def wide_pairs(tmp_path_factory) -> list:
+    """Two rendered pairs with a 5-25 cm baseline, enough parallax for a translation direction."""
+    root = tmp_path_factory.mktemp("wide_pairs")
+    cargo_run("-p", "vofront-fixtures", "--example", "render_pairs", "--", str(root), "2", "0.25")
+    return [root / str(k) for k in range(2)]
+
+
+@pytest.fixture(scope="session")
 def sequence(tmp_path_factory) -> Path:
     """A 12-frame rendered TUM RGB-D sequence of the room with exact ground truth."""
     root = tmp_path_factory.mktemp("sequence") / "room"
