@@ -1,9 +1,8 @@
 //! numpy in, numpy out: images, depth maps, intrinsics, poses and point lists.
 //!
 //! Every input is checked here (dtype, shape, finiteness) and rejected with a `ValueError`
-//! naming the argument; an image is copied exactly once, into the buffer the library owns.
-
-use std::borrow::Cow;
+//! naming the argument; an image is read exactly once, converted into the buffer the library
+//! owns (`uint8` for the feature pipeline, `f32` for the direct aligners).
 
 use image::GrayImage;
 use nalgebra::{Isometry3, Matrix3, Rotation3, Translation3, UnitQuaternion, Vector2};
@@ -28,66 +27,6 @@ pub type Arr2<'py, T> = Bound<'py, PyArray2<T>>;
 /// A `ValueError` with `msg`.
 pub fn bad(msg: impl Into<String>) -> PyErr {
     PyValueError::new_err(msg.into())
-}
-
-/// A grey image as the caller gave it: 8-bit, or `f32` grey levels (0..255 scale).
-pub enum Image {
-    /// `uint8` array.
-    Gray8(GrayImage),
-    /// `float32` array, grey levels.
-    Float(Plane),
-}
-
-impl Image {
-    /// `(width, height)`, pixels.
-    pub fn size(&self) -> (usize, usize) {
-        match self {
-            Image::Gray8(g) => (g.width() as usize, g.height() as usize),
-            Image::Float(p) => p.size(),
-        }
-    }
-
-    /// The 8-bit image the feature pipeline takes (`f32` values rounded and clamped to 0..255).
-    pub fn gray8(&self) -> Cow<'_, GrayImage> {
-        match self {
-            Image::Gray8(g) => Cow::Borrowed(g),
-            Image::Float(p) => {
-                let (w, h) = p.size();
-                let data = (0..h)
-                    .flat_map(|y| p.row(y).iter())
-                    .map(|&v| v.round().clamp(0.0, 255.0) as u8)
-                    .collect();
-                Cow::Owned(
-                    GrayImage::from_raw(w as u32, h as u32, data)
-                        .expect("w * h values for a w x h image"),
-                )
-            }
-        }
-    }
-
-    /// Like [`Image::gray8`], consuming the image (no copy of a `uint8` input).
-    pub fn into_gray8(self) -> GrayImage {
-        match self {
-            Image::Gray8(g) => g,
-            Image::Float(_) => self.gray8().into_owned(),
-        }
-    }
-
-    /// The `f32` plane the direct aligners take.
-    pub fn plane(&self) -> Cow<'_, Plane> {
-        match self {
-            Image::Gray8(g) => Cow::Owned(Plane::from_gray8(g)),
-            Image::Float(p) => Cow::Borrowed(p),
-        }
-    }
-
-    /// Like [`Image::plane`], consuming the image (no copy of a `float32` input).
-    pub fn into_plane(self) -> Plane {
-        match self {
-            Image::Gray8(g) => Plane::from_gray8(&g),
-            Image::Float(p) => p,
-        }
-    }
 }
 
 /// `(rows, cols)` of a 2-D array, rejecting empty arrays and sizes beyond `u32`.
@@ -122,36 +61,68 @@ fn describe(obj: &Bound<'_, PyAny>) -> String {
     }
 }
 
-/// A grey image from a `(H, W)` `uint8` or `float32` array (grey levels 0..255, finite).
-pub fn image(obj: &Bound<'_, PyAny>, what: &str) -> PyResult<Image> {
-    if let Ok(a) = obj.extract::<PyReadonlyArray2<'_, u8>>() {
-        let (h, w) = image_shape(a.shape(), what)?;
-        let img = GrayImage::from_raw(w as u32, h as u32, to_vec(a.as_array()))
-            .expect("h * w values for an h x w image");
-        return Ok(Image::Gray8(img));
-    }
-    if let Ok(a) = obj.extract::<PyReadonlyArray2<'_, f32>>() {
-        let (h, w) = image_shape(a.shape(), what)?;
-        let data = to_vec(a.as_array());
-        if !data.iter().all(|v| v.is_finite()) {
+/// The pixels of a `(H, W)` grey image array, borrowed from numpy.
+enum Pixels<'py> {
+    U8(PyReadonlyArray2<'py, u8>),
+    F32(PyReadonlyArray2<'py, f32>),
+}
+
+/// Borrows a `(H, W)` `uint8` or `float32` (finite grey levels, 0..255) array.
+fn pixels<'py>(obj: &Bound<'py, PyAny>, what: &str) -> PyResult<(Pixels<'py>, (usize, usize))> {
+    let (px, shape) = if let Ok(a) = obj.extract::<PyReadonlyArray2<'py, u8>>() {
+        let shape = image_shape(a.shape(), what)?;
+        (Pixels::U8(a), shape)
+    } else if let Ok(a) = obj.extract::<PyReadonlyArray2<'py, f32>>() {
+        let shape = image_shape(a.shape(), what)?;
+        if !a.as_array().iter().all(|v| v.is_finite()) {
             return Err(bad(format!(
                 "{what}: image contains NaN or infinite values"
             )));
         }
-        let plane = Plane::new(w, h, data).map_err(|e| bad(format!("{what}: {e}")))?;
-        return Ok(Image::Float(plane));
-    }
-    Err(bad(format!(
-        "{what}: expected a 2-D uint8 or float32 grey image (H, W), got {}",
-        describe(obj)
-    )))
+        (Pixels::F32(a), shape)
+    } else {
+        return Err(bad(format!(
+            "{what}: expected a 2-D uint8 or float32 grey image (H, W), got {}",
+            describe(obj)
+        )));
+    };
+    Ok((px, shape))
 }
 
-/// A metric depth map (metres, 0 = unknown) from a `(H, W)` array: `uint16` raw sensor units
+/// The 8-bit image the feature pipeline takes, in one pass over the array (`float32` values
+/// rounded and clamped to 0..255).
+pub fn gray8(obj: &Bound<'_, PyAny>, what: &str) -> PyResult<GrayImage> {
+    let (px, (h, w)) = pixels(obj, what)?;
+    let data = match px {
+        Pixels::U8(a) => to_vec(a.as_array()),
+        Pixels::F32(a) => a
+            .as_array()
+            .iter()
+            .map(|&v| v.round().clamp(0.0, 255.0) as u8)
+            .collect(),
+    };
+    Ok(GrayImage::from_raw(w as u32, h as u32, data).expect("h * w values for an h x w image"))
+}
+
+/// The `f32` plane (grey levels) the direct aligners take, in one pass over the array.
+pub fn plane(obj: &Bound<'_, PyAny>, what: &str) -> PyResult<Plane> {
+    let (px, (h, w)) = pixels(obj, what)?;
+    let data = match px {
+        Pixels::U8(a) => a.as_array().iter().map(|&v| f32::from(v)).collect(),
+        Pixels::F32(a) => to_vec(a.as_array()),
+    };
+    Plane::new(w, h, data).map_err(|e| bad(format!("{what}: {e}")))
+}
+
+/// Metric depth values (metres, 0 = unknown) of a `(H, W)` array: `uint16` raw sensor units
 /// divided by `scale` (5000 per metre for TUM), or `float32` / `float64` metres (non-finite
-/// values become 0 = unknown).
-pub fn depth(obj: &Bound<'_, PyAny>, scale: f64, what: &str) -> PyResult<DepthMap> {
-    let (w, h, metres) = if let Ok(a) = obj.extract::<PyReadonlyArray2<'_, u16>>() {
+/// values become 0 = unknown). Returns `(width, height, row-major values)`.
+fn depth_values(
+    obj: &Bound<'_, PyAny>,
+    scale: f64,
+    what: &str,
+) -> PyResult<(usize, usize, Vec<f32>)> {
+    if let Ok(a) = obj.extract::<PyReadonlyArray2<'_, u16>>() {
         if !(scale.is_finite() && scale > 0.0) {
             return Err(bad(format!("depth_scale must be positive, got {scale}")));
         }
@@ -161,24 +132,36 @@ pub fn depth(obj: &Bound<'_, PyAny>, scale: f64, what: &str) -> PyResult<DepthMa
             .iter()
             .map(|&v| (v as f64 / scale) as f32)
             .collect();
-        (w, h, metres)
-    } else if let Ok(a) = obj.extract::<PyReadonlyArray2<'_, f32>>() {
+        return Ok((w, h, metres));
+    }
+    if let Ok(a) = obj.extract::<PyReadonlyArray2<'_, f32>>() {
         let (h, w) = image_shape(a.shape(), what)?;
         let finite = |v: f32| if v.is_finite() { v } else { 0.0 };
         let metres = a.as_array().iter().map(|&v| finite(v)).collect();
-        (w, h, metres)
-    } else if let Ok(a) = obj.extract::<PyReadonlyArray2<'_, f64>>() {
+        return Ok((w, h, metres));
+    }
+    if let Ok(a) = obj.extract::<PyReadonlyArray2<'_, f64>>() {
         let (h, w) = image_shape(a.shape(), what)?;
         let finite = |v: f64| if v.is_finite() { v as f32 } else { 0.0 };
         let metres = a.as_array().iter().map(|&v| finite(v)).collect();
-        (w, h, metres)
-    } else {
-        return Err(bad(format!(
-            "{what}: expected a 2-D uint16 (raw units) or float32/float64 (metres) depth map, got {}",
-            describe(obj)
-        )));
-    };
+        return Ok((w, h, metres));
+    }
+    Err(bad(format!(
+        "{what}: expected a 2-D uint16 (raw units) or float32/float64 (metres) depth map, got {}",
+        describe(obj)
+    )))
+}
+
+/// A metric depth map (see [`depth_values`]) as the library's [`DepthMap`].
+pub fn depth(obj: &Bound<'_, PyAny>, scale: f64, what: &str) -> PyResult<DepthMap> {
+    let (w, h, metres) = depth_values(obj, scale, what)?;
     Ok(DepthMap::from_raw(w as u32, h as u32, metres).expect("h * w values for an h x w map"))
+}
+
+/// A metric depth map (see [`depth_values`]) as a direct-alignment plane.
+pub fn depth_plane(obj: &Bound<'_, PyAny>, scale: f64, what: &str) -> PyResult<Plane> {
+    let (w, h, metres) = depth_values(obj, scale, what)?;
+    Plane::new(w, h, metres).map_err(|e| bad(format!("{what}: {e}")))
 }
 
 /// A `(rows, cols)` float64 matrix from anything numpy converts, checked for finiteness.

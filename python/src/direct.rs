@@ -11,7 +11,9 @@ use vofront::direct::{
     TrackStatus, TranslationConfig,
 };
 
-use crate::convert::{array2, bad, camera, depth, image, points, pose, pose_matrix, Arr1, Arr2};
+use crate::convert::{
+    array2, bad, camera, depth_plane, plane, points, pose, pose_matrix, Arr1, Arr2,
+};
 use crate::errors::{failed, release};
 
 /// Milliseconds since `start`.
@@ -35,7 +37,7 @@ pub fn align_translation<'py>(
     max_iterations: usize,
     affine_brightness: bool,
 ) -> PyResult<Bound<'py, PyDict>> {
-    let (img1, img2) = (image(img1, "img1")?, image(img2, "img2")?);
+    let (img1, img2) = (plane(img1, "img1")?, plane(img2, "img2")?);
     if levels == 0 || max_iterations == 0 {
         return Err(bad("levels and max_iterations must be positive"));
     }
@@ -47,7 +49,7 @@ pub fn align_translation<'py>(
     };
     let (fit, ms) = release(py, || {
         let start = Instant::now();
-        let fit = translation(&img1.plane(), &img2.plane(), &cfg).map_err(failed)?;
+        let fit = translation(&img1, &img2, &cfg).map_err(failed)?;
         Ok((fit, ms_since(start)))
     })?;
     let out = PyDict::new(py);
@@ -117,9 +119,9 @@ pub fn align_se3<'py>(
     prior: Option<&Bound<'py, PyAny>>,
     depth_scale: f64,
 ) -> PyResult<Bound<'py, PyDict>> {
-    let reference = image(ref_img, "ref_img")?;
-    let depth1 = depth(ref_depth, depth_scale, "ref_depth")?;
-    let current = image(cur_img, "cur_img")?;
+    let reference = plane(ref_img, "ref_img")?;
+    let depth1 = depth_plane(ref_depth, depth_scale, "ref_depth")?;
+    let current = plane(cur_img, "cur_img")?;
     let camera = camera(K, dist)?;
     let prior = match prior.filter(|p| !p.is_none()) {
         Some(p) => pose(p, "prior")?,
@@ -134,9 +136,8 @@ pub fn align_se3<'py>(
     }
     let (fit, ms) = release(py, || {
         let start = Instant::now();
-        let depth_plane = vofront::pipeline::depth_plane(&depth1);
-        let frame = RgbdFrame::new(reference.into_plane(), depth_plane, &camera).map_err(failed)?;
-        let fit = se3(&frame, &current.plane(), &prior, &Se3Config::default()).map_err(failed)?;
+        let frame = RgbdFrame::new(reference, depth1, &camera).map_err(failed)?;
+        let fit = se3(&frame, &current, &prior, &Se3Config::default()).map_err(failed)?;
         Ok((fit, ms_since(start)))
     })?;
     let out = PyDict::new(py);
@@ -173,6 +174,7 @@ type KltOutput<'py> = (Arr2<'py, f32>, Arr1<'py, u8>, Arr1<'py, f32>);
 /// residual over the window, grey levels.
 #[pyfunction]
 #[pyo3(signature = (img1, img2, points, window = 21, levels = 4, forward_backward = Some(1.0)))]
+#[pyo3(text_signature = "(img1, img2, points, window=21, levels=4, forward_backward=1.0)")]
 pub fn klt<'py>(
     py: Python<'py>,
     img1: &Bound<'py, PyAny>,
@@ -182,7 +184,7 @@ pub fn klt<'py>(
     levels: usize,
     forward_backward: Option<f32>,
 ) -> PyResult<KltOutput<'py>> {
-    let (img1, img2) = (image(img1, "img1")?, image(img2, "img2")?);
+    let (img1, img2) = (plane(img1, "img1")?, plane(img2, "img2")?);
     let start: Vec<Vector2<f32>> = self::points(points, "points")?
         .iter()
         .map(|p| p.cast::<f32>())
@@ -193,9 +195,7 @@ pub fn klt<'py>(
         forward_backward,
         ..KltConfig::default()
     };
-    let tracks = release(py, || {
-        track_klt(&img1.plane(), &img2.plane(), &start, &cfg).map_err(failed)
-    })?;
+    let tracks = release(py, || track_klt(&img1, &img2, &start, &cfg).map_err(failed))?;
     let positions = tracks
         .iter()
         .flat_map(|t| [t.position.x, t.position.y])

@@ -96,6 +96,7 @@ pub fn stats_dict<'py>(py: Python<'py>, s: &Stats) -> PyResult<Bound<'py, PyDict
 /// with `pairs`, `alignment`, `scale` and `errors` (per associated pose, metres).
 #[pyfunction]
 #[pyo3(signature = (gt, est, align = Some("se3"), max_dt = 0.01))]
+#[pyo3(text_signature = "(gt, est, align=\"se3\", max_dt=0.01)")]
 pub fn ate<'py>(
     py: Python<'py>,
     gt: &Bound<'py, PyAny>,
@@ -124,6 +125,7 @@ pub fn ate<'py>(
 /// so only `align="sim3"` (scale) changes the result, as in `vofront eval`.
 #[pyfunction]
 #[pyo3(signature = (gt, est, align = Some("se3"), max_dt = 0.01))]
+#[pyo3(text_signature = "(gt, est, align=\"se3\", max_dt=0.01)")]
 pub fn rpe<'py>(
     py: Python<'py>,
     gt: &Bound<'py, PyAny>,

@@ -4,7 +4,7 @@ use numpy::{PyReadonlyArray2, PyUntypedArrayMethods};
 use pyo3::prelude::*;
 use vofront::features::{match_descriptors, Descriptor, MatchConfig, Orb, OrbConfig};
 
-use crate::convert::{array2, bad, image, Arr2};
+use crate::convert::{array2, bad, gray8, Arr2};
 use crate::errors::{failed, release};
 
 /// Columns of the keypoint array returned by [`orb`].
@@ -24,14 +24,14 @@ pub fn orb<'py>(
     img: &Bound<'py, PyAny>,
     n: usize,
 ) -> PyResult<(Arr2<'py, f32>, Arr2<'py, u8>)> {
-    let img = image(img, "img")?;
+    let img = gray8(img, "img")?;
     let cfg = OrbConfig {
         n_features: n,
         ..OrbConfig::default()
     };
     let f = release(py, || {
         let orb = Orb::new(cfg).map_err(failed)?;
-        orb.detect_and_describe(&img.gray8()).map_err(failed)
+        orb.detect_and_describe(&img).map_err(failed)
     })?;
     let keypoints = (0..f.len())
         .flat_map(|i| {
@@ -88,6 +88,7 @@ fn descriptors(a: &Bound<'_, PyAny>, what: &str) -> PyResult<Vec<Descriptor>> {
 /// mutual. Returns an `(M, 3)` int64 array of `query, train, distance` rows.
 #[pyfunction(name = "match")]
 #[pyo3(signature = (d1, d2, ratio = Some(0.75), cross_check = false, max_distance = 100))]
+#[pyo3(text_signature = "(d1, d2, ratio=0.75, cross_check=False, max_distance=100)")]
 pub fn match_<'py>(
     py: Python<'py>,
     d1: &Bound<'py, PyAny>,

@@ -16,7 +16,7 @@ use vofront::odometry::run::run;
 use vofront::odometry::{FrameEstimate, Tracker};
 use vofront::trajectory::Trajectory;
 
-use crate::convert::{array2, bad, camera, depth, image, pose_matrix};
+use crate::convert::{array2, bad, camera, depth, gray8, pose_matrix};
 use crate::errors::{dataset_error, failed, release};
 use crate::eval::{stats_dict, tum_rows};
 
@@ -139,7 +139,7 @@ impl Odometry {
         depth: Option<&Bound<'py, PyAny>>,
         timestamp: Option<f64>,
     ) -> PyResult<Bound<'py, PyDict>> {
-        let img = self::image(image, "image")?.into_gray8();
+        let img = gray8(image, "image")?;
         let depth = match depth.filter(|d| !d.is_none()) {
             Some(d) => Some(self::depth(d, self.depth_scale, "depth")?),
             None if self.method.needs_depth() => {

@@ -8,7 +8,7 @@ use pyo3::types::PyDict;
 use vofront::geometry::{estimate_relative_pose, RelativePoseConfig};
 use vofront::report::two_view::{estimate, model_name, to_json, Inputs, Method};
 
-use crate::convert::{bad, camera, depth, image, json_to_py, points, pose_matrix};
+use crate::convert::{bad, camera, depth, gray8, json_to_py, points, pose_matrix};
 use crate::direct::{ms_since, rotation_translation};
 use crate::errors::{failed, release};
 
@@ -93,8 +93,8 @@ pub fn two_view<'py>(
         None => None,
     };
     let inputs = Inputs {
-        img1: image(img1, "img1")?.into_gray8(),
-        img2: image(img2, "img2")?.into_gray8(),
+        img1: gray8(img1, "img1")?,
+        img2: gray8(img2, "img2")?,
         depth1,
         camera: camera(K, dist)?,
         method,

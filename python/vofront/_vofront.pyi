@@ -6,17 +6,18 @@ Trajectories are camera-to-world ``T_wc``. Images: 2-D uint8 or float32 grey lev
 """
 
 from os import PathLike
-from typing import Any, Optional, Sequence, Tuple, Union
+from typing import Any, Optional, Tuple, Union, final
 
 import numpy as np
 import numpy.typing as npt
 
 __version__: str
+__all__: list[str]
 
-ArrayLike = npt.ArrayLike
-Image = Union[npt.NDArray[np.uint8], npt.NDArray[np.float32]]
-Depth = Union[npt.NDArray[np.uint16], npt.NDArray[np.float32], npt.NDArray[np.float64]]
-TrajectoryLike = Union[str, PathLike, ArrayLike]
+_ArrayLike = npt.ArrayLike
+_Image = Union[npt.NDArray[np.uint8], npt.NDArray[np.float32]]
+_Depth = Union[npt.NDArray[np.uint16], npt.NDArray[np.float32], npt.NDArray[np.float64]]
+_TrajectoryLike = Union[str, PathLike, _ArrayLike]
 
 class VofrontError(ValueError):
     """An estimator failed on valid input; the message is the library's."""
@@ -28,12 +29,12 @@ def load_depth(path: Union[str, PathLike], depth_scale: float = 5000.0) -> npt.N
     """A 16-bit depth PNG as (H, W) float32 metres (value / depth_scale, 0 = unknown)."""
 
 def two_view(
-    img1: Image,
-    img2: Image,
-    K: ArrayLike,
-    dist: Optional[ArrayLike] = None,
+    img1: _Image,
+    img2: _Image,
+    K: _ArrayLike,
+    dist: Optional[_ArrayLike] = None,
     method: str = "all",
-    depth1: Optional[Depth] = None,
+    depth1: Optional[_Depth] = None,
     depth_scale: float = 5000.0,
     features: int = 2000,
 ) -> dict[str, Any]:
@@ -47,7 +48,7 @@ def two_view(
     """
 
 def relpose(
-    x1: ArrayLike, x2: ArrayLike, K: ArrayLike, dist: Optional[ArrayLike] = None
+    x1: _ArrayLike, x2: _ArrayLike, K: _ArrayLike, dist: Optional[_ArrayLike] = None
 ) -> dict[str, Any]:
     """Robust relative pose ``T_21`` (unit ``t``) from (N, 2) pixel correspondences.
 
@@ -55,7 +56,7 @@ def relpose(
     (4x4), ``model`` (``essential`` / ``homography``), ``parallax_deg``, ``inlier_mask`` (N,).
     """
 
-def orb(img: Image, n: int = 2000) -> Tuple[npt.NDArray[np.float32], npt.NDArray[np.uint8]]:
+def orb(img: _Image, n: int = 2000) -> Tuple[npt.NDArray[np.float32], npt.NDArray[np.uint8]]:
     """ORB features: ``(keypoints, descriptors)``.
 
     ``keypoints`` (N, 6) float32 columns ``x, y`` (pixels), ``scale`` (level-0 pixels per level
@@ -77,8 +78,8 @@ def match(
     """
 
 def align_translation(
-    img1: Image,
-    img2: Image,
+    img1: _Image,
+    img2: _Image,
     levels: int = 4,
     max_iterations: int = 30,
     affine_brightness: bool = False,
@@ -90,12 +91,12 @@ def align_translation(
     """
 
 def align_se3(
-    ref_img: Image,
-    ref_depth: Depth,
-    cur_img: Image,
-    K: ArrayLike,
-    dist: Optional[ArrayLike] = None,
-    prior: Optional[ArrayLike] = None,
+    ref_img: _Image,
+    ref_depth: _Depth,
+    cur_img: _Image,
+    K: _ArrayLike,
+    dist: Optional[_ArrayLike] = None,
+    prior: Optional[_ArrayLike] = None,
     depth_scale: float = 5000.0,
 ) -> dict[str, Any]:
     """Direct photometric SE(3) alignment: ``T_21`` of the current camera w.r.t. the reference.
@@ -107,29 +108,30 @@ def align_se3(
     """
 
 def klt(
-    img1: Image,
-    img2: Image,
-    points: ArrayLike,
+    img1: _Image,
+    img2: _Image,
+    points: _ArrayLike,
     window: int = 21,
     levels: int = 4,
     forward_backward: Optional[float] = 1.0,
 ) -> Tuple[npt.NDArray[np.float32], npt.NDArray[np.uint8], npt.NDArray[np.float32]]:
     """Pyramidal Lucas-Kanade: ``(next_points (N, 2), status (N,) 1 = tracked, error (N,))``."""
 
+@final
 class Odometry:
     """Frame-by-frame visual odometry (``direct``, ``feature-rgbd`` or ``feature``)."""
 
-    def __init__(
-        self,
+    def __new__(
+        cls,
         method: str,
-        K: ArrayLike,
-        dist: Optional[ArrayLike] = None,
+        K: _ArrayLike,
+        dist: Optional[_ArrayLike] = None,
         depth_scale: float = 5000.0,
-    ) -> None: ...
+    ) -> "Odometry": ...
     def track(
         self,
-        image: Image,
-        depth: Optional[Depth] = None,
+        image: _Image,
+        depth: Optional[_Depth] = None,
         timestamp: Optional[float] = None,
     ) -> dict[str, Any]:
         """Tracks the next frame; returns ``timestamp``, ``pose_wc`` (4x4 ``T_wc``), ``status``
@@ -141,8 +143,8 @@ class Odometry:
 def run_odometry(
     dataset_path: Union[str, PathLike],
     method: str = "direct",
-    K: Optional[ArrayLike] = None,
-    dist: Optional[ArrayLike] = None,
+    K: Optional[_ArrayLike] = None,
+    dist: Optional[_ArrayLike] = None,
     max_frames: Optional[int] = None,
 ) -> dict[str, Any]:
     """Tracks a TUM RGB-D, KITTI or EuRoC folder like ``vofront odometry``.
@@ -152,8 +154,8 @@ def run_odometry(
     """
 
 def ate(
-    gt: TrajectoryLike,
-    est: TrajectoryLike,
+    gt: _TrajectoryLike,
+    est: _TrajectoryLike,
     align: Optional[str] = "se3",
     max_dt: float = 0.01,
 ) -> dict[str, Any]:
@@ -162,8 +164,8 @@ def ate(
     ``errors``. ``align``: ``se3``, ``sim3`` or ``none``."""
 
 def rpe(
-    gt: TrajectoryLike,
-    est: TrajectoryLike,
+    gt: _TrajectoryLike,
+    est: _TrajectoryLike,
     align: Optional[str] = "se3",
     max_dt: float = 0.01,
 ) -> dict[str, Any]:
