@@ -12,7 +12,23 @@ import numpy as np
 import numpy.typing as npt
 
 __version__: str
-__all__: list[str]
+__all__ = [
+    "Odometry",
+    "VofrontError",
+    "__version__",
+    "align_se3",
+    "align_translation",
+    "ate",
+    "klt",
+    "load_depth",
+    "load_gray",
+    "match",
+    "orb",
+    "relpose",
+    "rpe",
+    "run_odometry",
+    "two_view",
+]
 
 _ArrayLike = npt.ArrayLike
 _Image = Union[npt.NDArray[np.uint8], npt.NDArray[np.float32]]
