@@ -1,0 +1,150 @@
+//! Trajectory evaluation: `ate` and `rpe`, as `vofront eval` (and evo) compute them.
+
+use std::path::PathBuf;
+
+use nalgebra::{Isometry3, Quaternion, Translation3, UnitQuaternion};
+use numpy::{AllowTypeChange, PyArray1, PyArrayLike2};
+use pyo3::prelude::*;
+use pyo3::types::PyDict;
+use vofront::eval::{ate as ate_of, rpe as rpe_of, Alignment, EvalConfig, Stats};
+use vofront::trajectory::Trajectory;
+
+use crate::convert::bad;
+use crate::errors::{failed, release, trajectory_error};
+
+/// `t tx ty tz qx qy qz qw` per pose, row-major.
+pub fn tum_rows(t: &Trajectory) -> Vec<f64> {
+    t.poses
+        .iter()
+        .flat_map(|(stamp, p)| {
+            let (v, q) = (p.translation.vector, p.rotation.coords);
+            [*stamp, v.x, v.y, v.z, q.x, q.y, q.z, q.w]
+        })
+        .collect()
+}
+
+/// A trajectory from a TUM file path or an (N, 8) array of TUM rows.
+fn trajectory(obj: &Bound<'_, PyAny>, what: &str) -> PyResult<Trajectory> {
+    if let Ok(path) = obj.extract::<PathBuf>() {
+        return Trajectory::read_tum(&path).map_err(trajectory_error);
+    }
+    let a: PyArrayLike2<'_, f64, AllowTypeChange> = obj.extract().map_err(|_| {
+        bad(format!(
+            "{what}: expected a TUM file path or an (N, 8) array of rows t tx ty tz qx qy qz qw"
+        ))
+    })?;
+    let a = a.as_array();
+    if a.ncols() != 8 {
+        return Err(bad(format!(
+            "{what}: expected shape (N, 8), got {:?}",
+            a.shape()
+        )));
+    }
+    let mut poses = Vec::with_capacity(a.nrows());
+    for (i, r) in a.rows().into_iter().enumerate() {
+        let q = Quaternion::new(r[7], r[4], r[5], r[6]);
+        if !r.iter().all(|v| v.is_finite()) || q.norm() < 1e-9 {
+            return Err(bad(format!(
+                "{what}: row {i} is not finite or has a zero quaternion"
+            )));
+        }
+        let pose = Isometry3::from_parts(
+            Translation3::new(r[1], r[2], r[3]),
+            UnitQuaternion::from_quaternion(q),
+        );
+        poses.push((r[0], pose));
+    }
+    Ok(Trajectory::new(poses))
+}
+
+fn alignment(name: Option<&str>) -> PyResult<Alignment> {
+    match name {
+        None | Some("none") => Ok(Alignment::None),
+        Some("se3") => Ok(Alignment::Se3),
+        Some("sim3") => Ok(Alignment::Sim3),
+        Some(other) => Err(bad(format!(
+            "align must be 'se3', 'sim3' or 'none', got '{other}'"
+        ))),
+    }
+}
+
+/// Summary statistics as `vofront eval --json` prints them (plus `sse`).
+pub fn stats_dict<'py>(py: Python<'py>, s: &Stats) -> PyResult<Bound<'py, PyDict>> {
+    let d = PyDict::new(py);
+    for (k, v) in [
+        ("rmse", s.rmse),
+        ("mean", s.mean),
+        ("median", s.median),
+        ("std", s.std),
+        ("min", s.min),
+        ("max", s.max),
+        ("sse", s.sse),
+    ] {
+        d.set_item(k, v)?;
+    }
+    d.set_item("count", s.count)?;
+    Ok(d)
+}
+
+/// Absolute trajectory error (translation, metres) of `est` against `gt`, as
+/// `evo_ape tum gt est [--align [--correct_scale]]`.
+///
+/// `gt`, `est`: TUM files or (N, 8) arrays `t tx ty tz qx qy qz qw` (camera-to-world).
+/// `align`: `se3` (rigid Umeyama, default as in `vofront eval`), `sim3` (with scale) or
+/// `none`; `max_dt`: largest timestamp difference for associating poses, seconds.
+/// Returns the statistics (`rmse`, `mean`, `median`, `std`, `min`, `max`, `sse`, `count`)
+/// with `pairs`, `alignment`, `scale` and `errors` (per associated pose, metres).
+#[pyfunction]
+#[pyo3(signature = (gt, est, align = Some("se3"), max_dt = 0.01))]
+#[pyo3(text_signature = "(gt, est, align=\"se3\", max_dt=0.01)")]
+pub fn ate<'py>(
+    py: Python<'py>,
+    gt: &Bound<'py, PyAny>,
+    est: &Bound<'py, PyAny>,
+    align: Option<&str>,
+    max_dt: f64,
+) -> PyResult<Bound<'py, PyDict>> {
+    let (gt, est) = (trajectory(gt, "gt")?, trajectory(est, "est")?);
+    let alignment = alignment(align)?;
+    let cfg = EvalConfig { max_dt, alignment };
+    let a = release(py, || {
+        ate_of(&gt, &est, &cfg).map_err(|e| failed(format!("ATE: {e}")))
+    })?;
+    let d = stats_dict(py, &a.stats)?;
+    d.set_item("pairs", a.pairs.len())?;
+    d.set_item("alignment", align.unwrap_or("none"))?;
+    d.set_item("scale", a.alignment.scale)?;
+    let errors: Vec<f64> = a.errors.iter().map(|e| e.1).collect();
+    d.set_item("errors", PyArray1::from_vec(py, errors))?;
+    Ok(d)
+}
+
+/// Relative pose error over consecutive associated poses, as
+/// `evo_rpe tum gt est --delta 1 --delta_unit f`: a dict with `translation` (metres) and
+/// `rotation_deg` statistics and `pairs`. A rigid alignment leaves relative poses unchanged,
+/// so only `align="sim3"` (scale) changes the result, as in `vofront eval`.
+#[pyfunction]
+#[pyo3(signature = (gt, est, align = Some("se3"), max_dt = 0.01))]
+#[pyo3(text_signature = "(gt, est, align=\"se3\", max_dt=0.01)")]
+pub fn rpe<'py>(
+    py: Python<'py>,
+    gt: &Bound<'py, PyAny>,
+    est: &Bound<'py, PyAny>,
+    align: Option<&str>,
+    max_dt: f64,
+) -> PyResult<Bound<'py, PyDict>> {
+    let (gt, est) = (trajectory(gt, "gt")?, trajectory(est, "est")?);
+    let alignment = match alignment(align)? {
+        Alignment::Sim3 => Alignment::Sim3,
+        _ => Alignment::None,
+    };
+    let cfg = EvalConfig { max_dt, alignment };
+    let r = release(py, || {
+        rpe_of(&gt, &est, &cfg).map_err(|e| failed(format!("RPE: {e}")))
+    })?;
+    let d = PyDict::new(py);
+    d.set_item("translation", stats_dict(py, &r.translation)?)?;
+    d.set_item("rotation_deg", stats_dict(py, &r.rotation_deg)?)?;
+    d.set_item("pairs", r.pairs.len())?;
+    Ok(d)
+}

@@ -1,0 +1,281 @@
+//! Sequences: the stateful `Odometry` tracker and `run_odometry` over a dataset folder.
+
+use std::path::PathBuf;
+use std::sync::Mutex;
+
+use numpy::PyArray2;
+use pyo3::prelude::*;
+use pyo3::types::{PyDict, PyList};
+use vofront::dataset::{tum::tum_preset_for, Dataset, DatasetKind, Frame};
+use vofront::eval::{ate, Alignment, EvalConfig};
+use vofront::geometry::camera::{Camera, Pinhole};
+use vofront::odometry::direct::{DirectTracker, DirectTrackerConfig};
+use vofront::odometry::feature_rgbd::{FeatureRgbdConfig, FeatureRgbdTracker};
+use vofront::odometry::mono::{MonoConfig, MonoTracker};
+use vofront::odometry::run::run;
+use vofront::odometry::{FrameEstimate, Tracker};
+use vofront::trajectory::Trajectory;
+
+use crate::convert::{array2, bad, camera, depth, gray8, pose_matrix};
+use crate::errors::{dataset_error, failed, release};
+use crate::eval::{stats_dict, tum_rows};
+
+/// The odometry methods, by the names of `vofront odometry --method`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Method {
+    Direct,
+    FeatureRgbd,
+    Feature,
+}
+
+impl Method {
+    fn parse(name: &str) -> PyResult<Self> {
+        match name {
+            "direct" => Ok(Method::Direct),
+            "feature-rgbd" | "feature_rgbd" => Ok(Method::FeatureRgbd),
+            "feature" => Ok(Method::Feature),
+            _ => Err(bad(format!(
+                "method must be 'direct', 'feature-rgbd' or 'feature', got '{name}'"
+            ))),
+        }
+    }
+
+    fn needs_depth(self) -> bool {
+        self != Method::Feature
+    }
+
+    fn tracker(self, camera: Camera) -> PyResult<Box<dyn Tracker + Send>> {
+        Ok(match self {
+            Method::Direct => Box::new(DirectTracker::new(camera, DirectTrackerConfig::default())),
+            Method::FeatureRgbd => Box::new(
+                FeatureRgbdTracker::new(camera, FeatureRgbdConfig::default()).map_err(failed)?,
+            ),
+            Method::Feature => {
+                Box::new(MonoTracker::new(camera, MonoConfig::default()).map_err(failed)?)
+            }
+        })
+    }
+
+    /// Trajectory alignment for evaluation: monocular scale is arbitrary.
+    fn alignment(self) -> Alignment {
+        if self == Method::Feature {
+            Alignment::Sim3
+        } else {
+            Alignment::Se3
+        }
+    }
+}
+
+/// A frame estimate as a dict: `timestamp`, `pose_wc` (4x4 camera-to-world), `status`
+/// (`ok`, `lost`, `reinitialised`), `quality` {`inliers`, `inlier_ratio`, `rmse`,
+/// `iterations`, `covariance_trace`, `keyframe`, `ms`}, `message` (why it was lost, or None).
+fn estimate_dict<'py>(
+    py: Python<'py>,
+    timestamp: f64,
+    e: &FrameEstimate,
+) -> PyResult<Bound<'py, PyDict>> {
+    let out = PyDict::new(py);
+    out.set_item("timestamp", timestamp)?;
+    out.set_item("pose_wc", pose_matrix(py, &e.pose_wc))?;
+    out.set_item("status", e.status.as_str())?;
+    let q = &e.quality;
+    let quality = PyDict::new(py);
+    quality.set_item("inliers", q.inliers)?;
+    quality.set_item("inlier_ratio", q.inlier_ratio)?;
+    quality.set_item("rmse", q.rmse)?;
+    quality.set_item("iterations", q.iterations)?;
+    quality.set_item("covariance_trace", q.covariance_trace)?;
+    quality.set_item("keyframe", q.keyframe)?;
+    quality.set_item("ms", q.ms)?;
+    out.set_item("quality", quality)?;
+    out.set_item("message", e.message.as_deref())?;
+    Ok(out)
+}
+
+/// Frame-by-frame visual odometry with one of the library's trackers.
+///
+/// `method`: `direct` (RGB-D photometric SE(3) to the keyframe), `feature-rgbd` (ORB + depth
+/// + PnP RANSAC) or `feature` (monocular ORB, scale arbitrary). `K` 3x3 pixels, `dist`
+/// OpenCV `(k1, k2, p1, p2, k3)`; `depth_scale` divides uint16 depth maps into metres.
+#[pyclass(module = "vofront")]
+pub struct Odometry {
+    method: Method,
+    /// Locked while a frame is tracked (the GIL is released then).
+    tracker: Mutex<Box<dyn Tracker + Send>>,
+    depth_scale: f64,
+    frames: usize,
+}
+
+#[pymethods]
+impl Odometry {
+    #[new]
+    #[pyo3(signature = (method, K, dist = None, depth_scale = 5000.0))]
+    #[allow(non_snake_case)]
+    fn new(
+        method: &str,
+        K: &Bound<'_, PyAny>,
+        dist: Option<&Bound<'_, PyAny>>,
+        depth_scale: f64,
+    ) -> PyResult<Self> {
+        let method = Method::parse(method)?;
+        let camera = camera(K, dist)?;
+        Ok(Self {
+            method,
+            tracker: Mutex::new(method.tracker(camera)?),
+            depth_scale,
+            frames: 0,
+        })
+    }
+
+    /// Tracks the next frame: grey `image` (uint8 or float32), `depth` (uint16 raw units or
+    /// float metres; required by `direct` and `feature-rgbd`), `timestamp` in seconds (the
+    /// frame number when None). Returns the frame estimate dict (`pose_wc` is `T_wc`, the
+    /// first frame at the origin).
+    #[pyo3(signature = (image, depth = None, timestamp = None))]
+    fn track<'py>(
+        &mut self,
+        py: Python<'py>,
+        image: &Bound<'py, PyAny>,
+        depth: Option<&Bound<'py, PyAny>>,
+        timestamp: Option<f64>,
+    ) -> PyResult<Bound<'py, PyDict>> {
+        let img = gray8(image, "image")?;
+        let depth = match depth.filter(|d| !d.is_none()) {
+            Some(d) => Some(self::depth(d, self.depth_scale, "depth")?),
+            None if self.method.needs_depth() => {
+                return Err(bad("depth: this method needs a depth map for every frame"))
+            }
+            None => None,
+        };
+        if let Some(d) = &depth {
+            if d.dimensions() != img.dimensions() {
+                return Err(bad(format!(
+                    "depth: size {:?} differs from the image size {:?} (width, height)",
+                    d.dimensions(),
+                    img.dimensions()
+                )));
+            }
+        }
+        let timestamp = timestamp.unwrap_or(self.frames as f64);
+        let frame = Frame {
+            timestamp,
+            image: img,
+            depth,
+        };
+        let tracker = &self.tracker;
+        let estimate = release(py, || {
+            let mut tracker = tracker
+                .lock()
+                .map_err(|_| failed("the tracker failed on an earlier frame"))?;
+            Ok(tracker.track(&frame))
+        })?;
+        self.frames += 1;
+        estimate_dict(py, timestamp, &estimate)
+    }
+
+    /// Number of frames tracked so far.
+    #[getter]
+    fn frames(&self) -> usize {
+        self.frames
+    }
+}
+
+/// The camera for a dataset without explicit intrinsics: its calibration file, a TUM preset
+/// recognised from the folder name, then the ROS default (525, 525, 319.5, 239.5).
+fn dataset_camera(dataset: &Dataset) -> Camera {
+    dataset
+        .camera
+        .or_else(|| (dataset.kind == DatasetKind::Tum).then(|| tum_preset_for(&dataset.root))?)
+        .unwrap_or_else(|| {
+            Camera::pinhole(Pinhole {
+                fx: 525.0,
+                fy: 525.0,
+                cx: 319.5,
+                cy: 239.5,
+            })
+        })
+}
+
+/// Tracks a TUM RGB-D, KITTI or EuRoC folder as `vofront odometry` does.
+///
+/// Returns a dict: `trajectory` (N, 8) TUM rows `t tx ty tz qx qy qz qw` of the tracked
+/// frames (camera-to-world), `frames` (one estimate dict per frame; an unreadable frame has
+/// `status` `unreadable` and its `message`), `summary` counts, and with ground truth
+/// `ground_truth` (M, 8) and `ate` (statistics in metres, aligned as the CLI aligns:
+/// SE(3), Sim(3) for `feature`; None with an `ate_error` message when it cannot be computed).
+#[pyfunction]
+#[pyo3(signature = (dataset_path, method = "direct", K = None, dist = None, max_frames = None))]
+#[allow(non_snake_case)]
+pub fn run_odometry<'py>(
+    py: Python<'py>,
+    dataset_path: PathBuf,
+    method: &str,
+    K: Option<&Bound<'py, PyAny>>,
+    dist: Option<&Bound<'py, PyAny>>,
+    max_frames: Option<usize>,
+) -> PyResult<Bound<'py, PyDict>> {
+    let method = Method::parse(method)?;
+    let dataset = release(py, || Dataset::open(&dataset_path).map_err(dataset_error))?;
+    let camera = match K.filter(|k| !k.is_none()) {
+        Some(k) => camera(k, dist)?,
+        None => dataset_camera(&dataset),
+    };
+    if method.needs_depth() && dataset.frames.iter().all(|f| f.depth.is_none()) {
+        return Err(bad(format!(
+            "{}: the {method:?} method needs depth, and this dataset has none",
+            dataset_path.display()
+        )));
+    }
+    let mut tracker = method.tracker(camera)?;
+    let out = release(py, || {
+        Ok(run(&dataset, tracker.as_mut(), max_frames, |_, _| {}))
+    })?;
+    let result = PyDict::new(py);
+    result.set_item("trajectory", trajectory_array(py, &out.trajectory))?;
+    let frames = PyList::empty(py);
+    for r in &out.records {
+        let d = match &r.estimate {
+            Ok(e) => estimate_dict(py, r.timestamp, e)?,
+            Err(message) => {
+                let d = PyDict::new(py);
+                d.set_item("timestamp", r.timestamp)?;
+                d.set_item("status", "unreadable")?;
+                d.set_item("message", message)?;
+                d
+            }
+        };
+        d.set_item("index", r.index)?;
+        frames.append(d)?;
+    }
+    result.set_item("frames", frames)?;
+    let s = &out.summary;
+    let summary = PyDict::new(py);
+    summary.set_item("frames", s.frames)?;
+    summary.set_item("tracked", out.trajectory.len())?;
+    summary.set_item("lost", s.lost)?;
+    summary.set_item("reinitialised", s.reinitialised)?;
+    summary.set_item("unreadable", s.unreadable)?;
+    summary.set_item("keyframes", s.keyframes)?;
+    summary.set_item("mean_ms", s.mean_ms)?;
+    result.set_item("summary", summary)?;
+    if let Some(gt) = &dataset.ground_truth {
+        result.set_item("ground_truth", trajectory_array(py, gt))?;
+        let cfg = EvalConfig {
+            alignment: method.alignment(),
+            max_dt: dataset.ground_truth_tolerance,
+        };
+        match ate(gt, &out.trajectory, &cfg) {
+            Ok(a) => result.set_item("ate", stats_dict(py, &a.stats)?)?,
+            Err(e) => {
+                result.set_item("ate", py.None())?;
+                result.set_item("ate_error", e.to_string())?;
+            }
+        }
+    }
+    Ok(result)
+}
+
+/// A trajectory as (N, 8) TUM rows.
+pub fn trajectory_array<'py>(py: Python<'py>, t: &Trajectory) -> Bound<'py, PyArray2<f64>> {
+    array2(py, t.len(), 8, tum_rows(t))
+}

@@ -1,0 +1,90 @@
+"""Shared fixtures: rendered scenes with exact ground truth, written by the workspace's own
+examples, and the `vofront` command line to compare against."""
+
+import json
+import subprocess
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+REPO = Path(__file__).resolve().parents[2]
+
+#: Intrinsics of the rendered fixtures (`vofront_fixtures::scene::default_camera`).
+K_RENDER = np.array([[525.0, 0.0, 319.5], [0.0, 525.0, 239.5], [0.0, 0.0, 1.0]])
+
+
+def cargo_run(*args: str) -> str:
+    """`cargo run --release -q ARGS` in the workspace; its standard output."""
+    out = subprocess.run(
+        ["cargo", "run", "--release", "-q", *args],
+        cwd=REPO,
+        check=False,
+        capture_output=True,
+        text=True,
+    )
+    if out.returncode != 0:
+        raise RuntimeError(f"cargo run {' '.join(args)} failed:\n{out.stderr}")
+    return out.stdout
+
+
+def cli(*args: str) -> str:
+    """The `vofront` program's standard output."""
+    return cargo_run("--bin", "vofront", "--", *args)
+
+
+def cli_json(*args: str) -> dict:
+    return json.loads(cli(*args, "--json"))
+
+
+def tum_pose(path: Path) -> np.ndarray:
+    """A `tx ty tz qx qy qz qw` file as a 4x4 camera-to-world matrix."""
+    tx, ty, tz, qx, qy, qz, qw = (float(v) for v in path.read_text().split())
+    return pose_from(np.array([tx, ty, tz]), np.array([qx, qy, qz, qw]))
+
+
+def pose_from(t: np.ndarray, q: np.ndarray) -> np.ndarray:
+    x, y, z, w = q / np.linalg.norm(q)
+    r = np.array(
+        [
+            [1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
+            [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],
+            [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)],
+        ]
+    )
+    m = np.eye(4)
+    m[:3, :3], m[:3, 3] = r, t
+    return m
+
+
+def rotation_angle_deg(r: np.ndarray) -> float:
+    return float(np.degrees(np.arccos(np.clip((np.trace(r) - 1) / 2, -1, 1))))
+
+
+@pytest.fixture(scope="session")
+def pairs(tmp_path_factory) -> list:
+    """Two rendered RGB-D pairs (`render_pairs`): folders with img/dep/pose of prev and curr."""
+    root = tmp_path_factory.mktemp("pairs")
+    cargo_run("-p", "vofront-fixtures", "--example", "render_pairs", "--", str(root), "2")
+    return [root / str(k) for k in range(2)]
+
+
+@pytest.fixture(scope="session")
+def wide_pairs(tmp_path_factory) -> list:
+    """Two rendered pairs with a 5-25 cm baseline, enough parallax for a translation direction."""
+    root = tmp_path_factory.mktemp("wide_pairs")
+    cargo_run("-p", "vofront-fixtures", "--example", "render_pairs", "--", str(root), "2", "0.25")
+    return [root / str(k) for k in range(2)]
+
+
+@pytest.fixture(scope="session")
+def sequence(tmp_path_factory) -> Path:
+    """A 12-frame rendered TUM RGB-D sequence of the room with exact ground truth."""
+    root = tmp_path_factory.mktemp("sequence") / "room"
+    cargo_run("-p", "vofront-python", "--example", "room_sequence", "--", str(root), "12")
+    return root
+
+
+def truth_t21(pair: Path) -> np.ndarray:
+    """`T_21 = inverse(T_w2) T_w1` of a rendered pair."""
+    return np.linalg.inv(tum_pose(pair / "pose_curr.txt")) @ tum_pose(pair / "pose_prev.txt")
