@@ -132,7 +132,7 @@ pub fn heat(width: u32, height: u32, values: &[f32], max: f32) -> RgbImage {
 /// The colour bar of [`heat`] at column `x0`: a vertical gradient from `max` (top) to 0 with
 /// five labelled ticks, its quantity, and a [`NO_DATA`] swatch.
 fn colour_bar(img: &mut RgbImage, x0: u32, max: f32) {
-    let (top, bar_w) = (50u32, 18u32);
+    let (top, bar_w) = (60u32, 18u32);
     let bar_h = img.height().saturating_sub(top + 50).max(40);
     text(img, (x0 as i32, 6), "|difference|", TEXT_PX, BLACK);
     text(img, (x0 as i32, 26), "(grey levels)", TEXT_PX, BLACK);

@@ -4,7 +4,7 @@ use std::path::PathBuf;
 
 use clap::{Args, Parser, Subcommand, ValueEnum};
 use vofront::geometry::camera::{Camera, Distortion, Pinhole};
-use vofront::presets::{camera_preset, PRESETS};
+use vofront::presets::{camera_preset, principal_point_warning, PRESETS};
 
 /// vofront: visual-odometry front-end. Without a command, runs the synthetic demo.
 #[derive(Debug, Parser)]
@@ -68,6 +68,16 @@ impl CameraArgs {
             || self.cx.is_some()
             || self.cy.is_some()
             || self.dist.is_some()
+    }
+
+    /// Without any camera flag: the warning of [`principal_point_warning`] for the default
+    /// camera and an image of `size`; `None` when a flag was given or the default fits.
+    pub fn default_camera_warning(&self, size: (u32, u32)) -> Option<String> {
+        if self.is_given() {
+            return None;
+        }
+        let camera = self.camera().ok()?;
+        principal_point_warning(&camera, size).map(|w| format!("no --camera given: {w}"))
     }
 
     /// The camera these flags describe.
@@ -145,8 +155,9 @@ pub struct TwoViewArgs {
     /// Print one JSON object instead of text.
     #[arg(long)]
     pub json: bool,
-    /// Write pictures (keypoints, matches, differences, residuals) into this folder.
-    #[arg(long, value_name = "DIR")]
+    /// Write pictures (keypoints, matches, differences, residuals) into this folder
+    /// (`--out-dir` alone: `vofront-out/two-view`).
+    #[arg(long, value_name = "DIR", num_args = 0..=1, default_missing_value = "vofront-out/two-view")]
     pub out_dir: Option<PathBuf>,
 }
 
