@@ -112,7 +112,7 @@ mod tests {
         let t = |n: &str| stamp_from_name(Path::new(n));
         assert_eq!(t("1305031102.175304.png"), Some(1305031102.175304));
         let ns = t("1403636579763555584.png").expect("ns");
-        assert!((ns - 1403636579.763555584).abs() < 1e-6);
+        assert!((ns - 1_403_636_579.0 - 0.763_555_584).abs() < 1e-6);
         assert_eq!(t("000042.png"), None);
         assert_eq!(t("frame_1.png"), None);
     }

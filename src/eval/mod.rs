@@ -194,7 +194,7 @@ pub(crate) fn associate_and_align(
     config: &EvalConfig,
     min_pairs: usize,
 ) -> Result<Associated, EvalError> {
-    if !(config.max_dt >= 0.0) {
+    if config.max_dt.is_nan() || config.max_dt < 0.0 {
         return Err(EvalError::BadMaxDt(config.max_dt));
     }
     let pairs = associate(gt, est, config.max_dt);
