@@ -711,3 +711,69 @@ fn every_eval_figure_is_written_as_png_and_svg() {
     }
     std::fs::remove_dir_all(&dir).expect("cleanup");
 }
+
+/// Runs the `vofront` binary in `dir`.
+fn vofront(args: &[&str], dir: &Path) -> std::process::Output {
+    std::process::Command::new(env!("CARGO_BIN_EXE_vofront"))
+        .args(args)
+        .current_dir(dir)
+        .output()
+        .expect("run vofront")
+}
+
+#[test]
+fn eval_command_takes_evo_style_deltas_and_prints_json() {
+    let data = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/data");
+    let out = vofront(
+        &[
+            "eval",
+            "evo_gt.txt",
+            "evo_est.txt",
+            "--align",
+            "none",
+            "--delta",
+            "10",
+            "--delta_unit",
+            "f",
+            "--all_pairs",
+            "--json",
+        ],
+        &data,
+    );
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let json: serde_json::Value = serde_json::from_slice(&out.stdout).expect("one JSON object");
+    let evo = &EVO_RPE_DELTAS[2].6; // --delta 10 --delta_unit f --all_pairs, trans_part
+    let rmse = json["rpe"]["translation"]["rmse"].as_f64().expect("rmse");
+    assert!((rmse - evo.0[0]).abs() < EVO_DELTA_TOLERANCE, "{json}");
+    assert_eq!(json["rpe"]["pairs"], 90);
+    assert_eq!(json["rpe"]["delta_unit"], "frames");
+    assert_eq!(json["alignment"], "none");
+}
+
+/// Negative numbers are values, not flags; a bad value is a one-line job error (exit 1).
+#[test]
+fn negative_numbers_reach_the_value_checks() {
+    let data = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/data");
+    let out = vofront(
+        &["eval", "evo_gt.txt", "evo_est.txt", "--max-dt", "-1"],
+        &data,
+    );
+    assert_eq!(out.status.code(), Some(1));
+    assert!(String::from_utf8_lossy(&out.stderr).contains("-1 s is invalid"));
+    for args in [
+        ["--dist", "-0.28,0.07,0,0"],
+        ["--fx", "-500"],
+        ["--cx", "-3.5"],
+    ] {
+        let mut all = vec!["two-view", "missing1.png", "missing2.png"];
+        all.extend(args);
+        let out = vofront(&all, &data);
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert_eq!(out.status.code(), Some(1), "{args:?}: {err}");
+        assert!(!err.contains("unexpected argument"), "{args:?}: {err}");
+    }
+}

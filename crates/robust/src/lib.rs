@@ -10,7 +10,7 @@
 //! - [`normal`]: accumulation of the normal equations `H = J^T W J`, `g = J^T W r` for a fixed
 //!   parameter count, mergeable so that rayon can reduce partial sums;
 //! - [`solve`]: the damped step `(H + lambda D) d = -g` with degeneracy detection;
-//! - [`irls`]: the iteratively reweighted Levenberg-Marquardt driver with covariance output.
+//! - [`irls`](mod@irls): the iteratively reweighted Levenberg-Marquardt driver with covariance output.
 //!
 //! ```
 //! use nalgebra::{SVector, Vector2};
