@@ -106,3 +106,49 @@ pub const PRESETS: &[CameraPreset] = &[
 pub fn camera_preset(name: &str) -> Option<&'static CameraPreset> {
     PRESETS.iter().find(|p| p.name == name)
 }
+
+/// Largest distance between the principal point and the image centre, as a fraction of the
+/// image width (x) or height (y), before [`principal_point_warning`] speaks up.
+pub const CENTRE_TOLERANCE: f64 = 0.1;
+
+/// A warning when the principal point `(cx, cy)` of `camera` is far from the centre
+/// `((w - 1) / 2, (h - 1) / 2)` of a `w x h` image (more than [`CENTRE_TOLERANCE`] of the
+/// width or height), naming the presets that would fit; `None` when it fits. Meant for the
+/// default camera (525, 525, 319.5, 239.5: a 640x480 Kinect) meeting, say, a KITTI image.
+///
+/// ```
+/// use vofront::presets::{camera_preset, principal_point_warning};
+/// let kinect = camera_preset("tum-ros").unwrap().camera;
+/// assert!(principal_point_warning(&kinect, (640, 480)).is_none());
+/// let w = principal_point_warning(&kinect, (1241, 376)).unwrap();
+/// assert!(w.contains("kitti-00-02"));
+/// ```
+pub fn principal_point_warning(camera: &Camera, (w, h): (u32, u32)) -> Option<String> {
+    let fits = |c: &Camera| {
+        let k = c.pinhole;
+        (k.cx - (w as f64 - 1.0) / 2.0).abs() <= CENTRE_TOLERANCE * w as f64
+            && (k.cy - (h as f64 - 1.0) / 2.0).abs() <= CENTRE_TOLERANCE * h as f64
+    };
+    if fits(camera) {
+        return None;
+    }
+    let k = camera.pinhole;
+    let candidates: Vec<&str> = PRESETS
+        .iter()
+        .filter(|p| fits(&p.camera))
+        .map(|p| p.name)
+        .collect();
+    let hint = if candidates.is_empty() {
+        "give --fx --fy --cx --cy".to_string()
+    } else {
+        format!("presets that fit: --camera {}", candidates.join(" | "))
+    };
+    Some(format!(
+        "the camera's principal point ({:.1}, {:.1}) is far from the centre of this {w}x{h} \
+         image ({:.1}, {:.1}): the pose will be wrong; {hint}",
+        k.cx,
+        k.cy,
+        (w as f64 - 1.0) / 2.0,
+        (h as f64 - 1.0) / 2.0
+    ))
+}

@@ -1,4 +1,5 @@
-//! Dataset readers (TUM RGB-D, KITTI, EuRoC) on small hand-written folders, and the
+//! Dataset readers (TUM RGB-D, KITTI, EuRoC, image folders) on small hand-written folders,
+//! the camera each dataset names, and the
 //! trajectory text formats and timestamp association.
 
 use std::fs;
@@ -9,7 +10,7 @@ use image::{GrayImage, ImageBuffer, Luma, Rgb, RgbImage};
 use nalgebra::{Isometry3, Translation3, UnitQuaternion, Vector3};
 use proptest::prelude::*;
 use vofront::dataset::tum::tum_preset_for;
-use vofront::dataset::{Dataset, DatasetError, DatasetKind};
+use vofront::dataset::{CameraSource, Dataset, DatasetConfig, DatasetError, DatasetKind};
 use vofront::fixtures::scene::{default_camera, room_trajectory, Scene};
 use vofront::fixtures::tum::write_tum_sequence;
 use vofront::trajectory::{associate, associate_stamps, Trajectory, TrajectoryError};
@@ -241,6 +242,77 @@ fn tum_presets_follow_the_folder_name() {
     assert!(tum_preset_for(Path::new("/data/my_sequence")).is_none());
 }
 
+#[test]
+fn tum_camera_comes_from_the_folder_name_or_the_list_header() {
+    let dir = TempDir::new("tum-cam");
+    let named = dir.0.join("rgbd_dataset_freiburg2_desk");
+    fs::create_dir_all(&named).expect("mkdir");
+    fs::write(named.join("rgb.txt"), "1.0 rgb/a.png\n").expect("rgb");
+    let data = Dataset::open(&named).expect("open");
+    assert_eq!(data.camera.expect("fr2").pinhole.fx, 520.9);
+    assert_eq!(
+        data.camera_source,
+        Some(CameraSource::FolderName("freiburg2".into()))
+    );
+    // A renamed folder: the benchmark's list header still names the sequence.
+    let plain = dir.0.join("my_copy");
+    fs::create_dir_all(&plain).expect("mkdir");
+    let rgb = plain.join("rgb.txt");
+    fs::write(
+        &rgb,
+        "# color images\n# file: 'rgbd_dataset_freiburg1_xyz.bag'\n# timestamp filename\n1.0 rgb/a.png\n",
+    )
+    .expect("rgb");
+    let data = Dataset::open(&plain).expect("open");
+    assert_eq!(data.camera.expect("fr1").distortion.k3, 1.1633);
+    assert_eq!(
+        data.camera_source,
+        Some(CameraSource::FileHeader(rgb.clone()))
+    );
+    // Nothing names the camera: none is invented.
+    fs::write(&rgb, "# timestamp filename\n1.0 rgb/a.png\n").expect("rgb");
+    let data = Dataset::open(&plain).expect("open");
+    assert!(data.camera.is_none() && data.camera_source.is_none());
+}
+
+// ---------------------------------------------------------------- image folders
+
+#[test]
+fn image_folders_are_timed_by_fps_or_by_file_names() {
+    let dir = TempDir::new("images");
+    for (name, v) in [("000002.png", 20), ("000000.png", 0), ("000001.jpg", 10)] {
+        dir.grey_png(name, v);
+    }
+    dir.write("notes.txt", "not an image");
+    // Frame numbers are no timestamps.
+    assert!(matches!(
+        Dataset::open(&dir.0),
+        Err(DatasetError::Parse { .. })
+    ));
+    let cfg = DatasetConfig {
+        fps: Some(10.0),
+        ..DatasetConfig::default()
+    };
+    let data = Dataset::open_with(&dir.0, &cfg).expect("open with fps");
+    assert_eq!(data.kind, DatasetKind::Images);
+    let times: Vec<f64> = data.frames.iter().map(|f| f.timestamp).collect();
+    assert_eq!(times, vec![0.0, 0.1, 0.2]);
+    assert_eq!(data.load(2).expect("frame 2").image.get_pixel(1, 1)[0], 20);
+    assert!(data.camera.is_none() && data.ground_truth.is_none());
+
+    let stamped = TempDir::new("images-stamped");
+    stamped.grey_png("1305031102.275304.png", 5);
+    stamped.grey_png("1305031102.175304.png", 4);
+    let data = Dataset::open(&stamped.0).expect("open stamped");
+    assert_eq!(data.frames[0].timestamp, 1305031102.175304);
+    assert_eq!(data.load(1).expect("frame 1").image.get_pixel(0, 0)[0], 5);
+    let bad = DatasetConfig {
+        fps: Some(-5.0),
+        ..DatasetConfig::default()
+    };
+    assert!(Dataset::open_with(&stamped.0, &bad).is_err());
+}
+
 // ---------------------------------------------------------------- KITTI
 
 const KITTI_CALIB: &str = "P0: 7.188560000000e+02 0.000000000000e+00 6.071928000000e+02 0.000000000000e+00 0.000000000000e+00 7.188560000000e+02 1.852157000000e+02 0.000000000000e+00 0.000000000000e+00 0.000000000000e+00 1.000000000000e+00 0.000000000000e+00
@@ -277,6 +349,10 @@ fn kitti_reads_calibration_times_images_and_poses() {
 
     let data = Dataset::open(&seq).expect("open");
     assert_eq!(data.kind, DatasetKind::Kitti);
+    assert_eq!(
+        data.camera_source,
+        Some(CameraSource::CalibrationFile(seq.join("calib.txt")))
+    );
     let cam = data.camera.expect("camera from P0");
     assert_eq!(
         (
@@ -424,6 +500,37 @@ fn euroc_reads_camera_nanosecond_stamps_and_body_ground_truth() {
     let x_axis = t_bc.rotation * Vector3::x();
     let want = Vector3::new(0.0148655429818, 0.999557249008, -0.0257744366974);
     assert!((x_axis - want).norm() < 1e-5, "{x_axis:?}");
+}
+
+/// OpenCV writes `%YAML:1.0` and `!!opencv-matrix`, which YAML parsers reject; both are
+/// tolerated.
+#[test]
+fn euroc_sensor_yaml_written_by_opencv_is_read() {
+    let dir = TempDir::new("euroc-opencv");
+    euroc_folder(&dir);
+    let opencv = format!(
+        "%YAML:1.0\n{}",
+        EUROC_SENSOR.replace("T_BS:\n", "T_BS: !!opencv-matrix\n")
+    );
+    let sensor = dir.write("mav0/cam0/sensor.yaml", &opencv);
+    let data = Dataset::open(&dir.0).expect("open");
+    assert_eq!(data.camera.expect("camera").pinhole.cx, 367.215);
+    assert_eq!(
+        data.camera_in_body.expect("T_BS").translation.vector.z,
+        0.00981073058949
+    );
+    assert_eq!(
+        data.camera_source,
+        Some(CameraSource::CalibrationFile(sensor))
+    );
+    dir.write(
+        "mav0/cam0/sensor.yaml",
+        &EUROC_SENSOR.replace("radial-tangential", "equidistant"),
+    );
+    assert!(matches!(
+        Dataset::open(&dir.0),
+        Err(DatasetError::Parse { .. })
+    ));
 }
 
 #[test]

@@ -18,8 +18,11 @@ use std::path::Path;
 use nalgebra::{Isometry3, Matrix3, Quaternion, Rotation3, Translation3, UnitQuaternion};
 use vofront_geometry::camera::{Camera, Distortion, Pinhole};
 
-use super::{parse_error, read_text, Dataset, DatasetConfig, DatasetError, DatasetKind, FrameInfo};
-use crate::trajectory::{data_lines, parse_numbers, Trajectory};
+use super::{
+    csv_records, parse_error, read_text, CameraSource, Dataset, DatasetConfig, DatasetError,
+    DatasetKind, FrameInfo,
+};
+use crate::trajectory::{parse_numbers, Trajectory};
 
 /// Tolerance on `|R^T R - I|` for the rotation block of `T_BS` (published to ~1e-6).
 const ROTATION_TOLERANCE: f64 = 1e-3;
@@ -49,23 +52,25 @@ pub fn open(root: &Path, config: &DatasetConfig) -> Result<Dataset, DatasetError
     }
     let (camera, camera_in_body) = read_sensor_yaml(&sensor)?;
     let list = cam.join("data.csv");
-    let text = read_text(&list)?;
-    let frames = data_lines(&text)
-        .map(|(line, fields)| match fields.as_slice() {
-            [stamp, file] => Ok(FrameInfo {
-                timestamp: nanoseconds(stamp).map_err(|m| parse_error(&list, line, m))?,
-                image: cam.join("data").join(file),
-                depth: None,
-            }),
-            _ => Err(parse_error(
-                &list,
-                line,
-                format!(
-                    "expected `timestamp [ns],filename`, found {} fields",
-                    fields.len()
-                ),
-            )),
-        })
+    let frames = csv_records(&list)?
+        .into_iter()
+        .map(
+            |(line, record)| match record.iter().collect::<Vec<_>>().as_slice() {
+                [stamp, file] => Ok(FrameInfo {
+                    timestamp: nanoseconds(stamp).map_err(|m| parse_error(&list, line, m))?,
+                    image: cam.join("data").join(file),
+                    depth: None,
+                }),
+                _ => Err(parse_error(
+                    &list,
+                    line,
+                    format!(
+                        "expected `timestamp [ns],filename`, found {} fields",
+                        record.len()
+                    ),
+                )),
+            },
+        )
         .collect::<Result<Vec<_>, _>>()?;
     let gt_path = root.join("mav0/state_groundtruth_estimate0/data.csv");
     let ground_truth = if gt_path.is_file() {
@@ -78,6 +83,7 @@ pub fn open(root: &Path, config: &DatasetConfig) -> Result<Dataset, DatasetError
         root: root.to_path_buf(),
         frames,
         camera: Some(camera),
+        camera_source: Some(CameraSource::CalibrationFile(sensor)),
         depth_scale: None,
         ground_truth,
         ground_truth_tolerance: config.ground_truth_tolerance,
@@ -98,17 +104,33 @@ fn nanoseconds(field: &str) -> Result<f64, String> {
 /// numbers, row-major 4x4).
 fn read_sensor_yaml(path: &Path) -> Result<(Camera, Option<Isometry3<f64>>), DatasetError> {
     let text = read_text(path)?;
-    if let Some((line, model)) = yaml_scalar(&text, "distortion_model") {
+    let sensor: SensorYaml = serde_yaml_ng::from_str(&yaml_body(&text)).map_err(|e| {
+        let line = e.location().map_or(0, |l| l.line());
+        parse_error(path, line, e.to_string())
+    })?;
+    if let Some(model) = &sensor.distortion_model {
         if model != "radial-tangential" {
             return Err(parse_error(
                 path,
-                line,
+                0,
                 format!("unsupported distortion model `{model}` (only radial-tangential)"),
             ));
         }
     }
-    let k = yaml_list(path, &text, "intrinsics", 4)?;
-    let d = yaml_list(path, &text, "distortion_coefficients", 4)?;
+    let count = |key: &str, v: &[f64], n: usize| {
+        if v.len() == n {
+            Ok(())
+        } else {
+            Err(parse_error(
+                path,
+                0,
+                format!("`{key}` needs {n} numbers, found {}", v.len()),
+            ))
+        }
+    };
+    let (k, d) = (&sensor.intrinsics, &sensor.distortion_coefficients);
+    count("intrinsics", k, 4)?;
+    count("distortion_coefficients", d, 4)?;
     let pinhole = Pinhole::new(k[0], k[1], k[2], k[3]).map_err(|source| DatasetError::Camera {
         path: path.to_path_buf(),
         source,
@@ -117,84 +139,77 @@ fn read_sensor_yaml(path: &Path) -> Result<(Camera, Option<Isometry3<f64>>), Dat
         pinhole,
         Distortion::from_array([d[0], d[1], d[2], d[3], 0.0]),
     );
-    Ok((camera, read_t_bs(path, &text)?))
+    let t_bs = match &sensor.t_bs {
+        Some(m) => {
+            count("T_BS.data", &m.data, 16)?;
+            Some(rigid_from_rows(path, &m.data)?)
+        }
+        None => None,
+    };
+    Ok((camera, t_bs))
 }
 
-/// `T_BS` (camera-to-body) of `sensor.yaml`: the `data:` list following the `T_BS:` line.
-fn read_t_bs(path: &Path, text: &str) -> Result<Option<Isometry3<f64>>, DatasetError> {
-    let Some((line, _)) = yaml_scalar(text, "T_BS") else {
-        return Ok(None);
-    };
-    let below: String = text.lines().skip(line).collect::<Vec<_>>().join("\n");
-    let shift = |e| match e {
-        DatasetError::Parse {
-            path,
-            line: l,
-            message,
-        } => DatasetError::Parse {
-            path,
-            line: if l == 0 { line } else { l + line },
-            message,
-        },
-        other => other,
-    };
-    let m = yaml_list(path, &below, "data", 16).map_err(shift)?;
+/// The entries of `sensor.yaml` that the reader uses (others are ignored).
+#[derive(Debug, serde::Deserialize)]
+struct SensorYaml {
+    /// `[fu, fv, cu, cv]`, pixels.
+    intrinsics: Vec<f64>,
+    /// `[k1, k2, p1, p2]`.
+    distortion_coefficients: Vec<f64>,
+    /// Only `radial-tangential` is supported.
+    #[serde(default)]
+    distortion_model: Option<String>,
+    /// Camera-to-body transform.
+    #[serde(rename = "T_BS", default)]
+    t_bs: Option<MatrixYaml>,
+}
+
+/// An OpenCV-style matrix entry: `data` row-major.
+#[derive(Debug, serde::Deserialize)]
+struct MatrixYaml {
+    data: Vec<f64>,
+}
+
+/// `text` without what a YAML 1.2 parser rejects in OpenCV-written files: the `%YAML:1.0`
+/// directive (replaced by an empty line so that line numbers stay) and `!!opencv-matrix` tags.
+fn yaml_body(text: &str) -> String {
+    text.lines()
+        .map(|l| {
+            if l.trim_start().starts_with("%YAML") {
+                ""
+            } else {
+                l
+            }
+        })
+        .collect::<Vec<_>>()
+        .join("\n")
+        .replace("!!opencv-matrix", "")
+}
+
+/// The rigid transform of a row-major 4x4 matrix whose rotation block must be a rotation.
+fn rigid_from_rows(path: &Path, m: &[f64]) -> Result<Isometry3<f64>, DatasetError> {
     let r = Matrix3::new(m[0], m[1], m[2], m[4], m[5], m[6], m[8], m[9], m[10]);
     if (r.transpose() * r - Matrix3::identity()).norm() > ROTATION_TOLERANCE
         || r.determinant() <= 0.0
     {
         return Err(parse_error(
             path,
-            line,
+            0,
             "T_BS rotation block is not a rotation",
         ));
     }
-    Ok(Some(Isometry3::from_parts(
+    Ok(Isometry3::from_parts(
         Translation3::new(m[3], m[7], m[11]),
         UnitQuaternion::from_rotation_matrix(&Rotation3::from_matrix_unchecked(r)),
-    )))
-}
-
-/// `(line, value)` of a top-level `key: value` scalar.
-fn yaml_scalar<'a>(text: &'a str, key: &str) -> Option<(usize, &'a str)> {
-    text.lines().enumerate().find_map(|(i, l)| {
-        let rest = l.trim().strip_prefix(key)?.trim_start().strip_prefix(':')?;
-        Some((i + 1, rest.split('#').next()?.trim()))
-    })
-}
-
-/// The `n` numbers of a flow list `key: [a, b, ...]` (which may span lines).
-fn yaml_list(path: &Path, text: &str, key: &str, n: usize) -> Result<Vec<f64>, DatasetError> {
-    let Some((line, _)) = yaml_scalar(text, key) else {
-        return Err(parse_error(path, 0, format!("no `{key}:` entry")));
-    };
-    let tail: String = text.lines().skip(line - 1).collect::<Vec<_>>().join(" ");
-    let body = tail
-        .split_once('[')
-        .and_then(|(_, rest)| rest.split_once(']'))
-        .map(|(inside, _)| inside)
-        .ok_or_else(|| parse_error(path, line, format!("`{key}` is not a `[...]` list")))?;
-    let fields: Vec<&str> = body
-        .split(',')
-        .map(str::trim)
-        .filter(|f| !f.is_empty())
-        .collect();
-    let values = parse_numbers(&fields).map_err(|m| parse_error(path, line, m))?;
-    if values.len() != n {
-        return Err(parse_error(
-            path,
-            line,
-            format!("`{key}` needs {n} numbers, found {}", values.len()),
-        ));
-    }
-    Ok(values)
+    ))
 }
 
 /// The body poses of `state_groundtruth_estimate0/data.csv`.
 fn read_ground_truth(path: &Path) -> Result<Trajectory, DatasetError> {
-    let text = read_text(path)?;
-    let poses = data_lines(&text)
-        .map(|(line, fields)| {
+    let poses = csv_records(path)?
+        .into_iter()
+        .map(|(line, record)| {
+            let fields: Vec<&str> = record.iter().collect();
             if fields.len() < 8 {
                 return Err(parse_error(
                     path,

@@ -12,7 +12,10 @@ use std::path::{Path, PathBuf};
 
 use vofront_geometry::camera::{Camera, Pinhole};
 
-use super::{parse_error, read_text, Dataset, DatasetConfig, DatasetError, DatasetKind, FrameInfo};
+use super::{
+    parse_error, read_text, CameraSource, Dataset, DatasetConfig, DatasetError, DatasetKind,
+    FrameInfo,
+};
 use crate::trajectory::{data_lines, parse_numbers, parse_times, Trajectory};
 
 /// Opens a KITTI odometry sequence folder (see the module documentation).
@@ -42,6 +45,7 @@ pub fn open(root: &Path, config: &DatasetConfig) -> Result<Dataset, DatasetError
         root: root.to_path_buf(),
         frames,
         camera: Some(camera),
+        camera_source: Some(CameraSource::CalibrationFile(calib)),
         depth_scale: None,
         ground_truth,
         ground_truth_tolerance: config.ground_truth_tolerance,

@@ -7,9 +7,14 @@
 //!
 //! | format | detected by | camera | depth | ground truth |
 //! |---|---|---|---|---|
-//! | [`tum`] | `rgb.txt` | none (caller supplies, see [`tum::tum_preset_for`]) | `depth.txt`, 16-bit PNG / 5000 | `groundtruth.txt`, camera `T_wc` |
+//! | [`tum`] | `rgb.txt` | freiburg1/2/3 preset from the folder name or list headers | `depth.txt`, 16-bit PNG / 5000 | `groundtruth.txt`, camera `T_wc` |
 //! | [`kitti`] | `image_0/` + `times.txt` | `calib.txt` line `P0` | none | `poses.txt` or `../../poses/<seq>.txt`, camera `T_wc` |
 //! | [`euroc`] | `mav0/cam0/data.csv` | `mav0/cam0/sensor.yaml` | none | `mav0/state_groundtruth_estimate0/data.csv`, **body (IMU) pose** `T_wb` (camera: `T_wb * camera_in_body`) |
+//! | [`images`] | `.png`/`.jpg` files | none | none | none |
+//!
+//! [`Dataset::camera`] is the camera the dataset describes and [`Dataset::camera_source`]
+//! says where it was found; for TUM it is the freiburg1/2/3 preset named by the folder name
+//! or by the `# file:` header of its lists ([`tum::tum_preset_for`]).
 //!
 //! ```
 //! use image::{GrayImage, Luma};
@@ -28,6 +33,7 @@
 //! ```
 
 pub mod euroc;
+pub mod images;
 pub mod kitti;
 pub mod tum;
 
@@ -51,7 +57,7 @@ pub enum DatasetError {
     #[error("{0}: folder is empty or does not exist")]
     Empty(PathBuf),
     /// The folder layout matches no supported format.
-    #[error("{0}: not a TUM RGB-D (rgb.txt), KITTI (image_0/, times.txt) or EuRoC (mav0/cam0/data.csv) folder")]
+    #[error("{0}: not a TUM RGB-D (rgb.txt), KITTI (image_0/, times.txt), EuRoC (mav0/cam0/data.csv) or image folder")]
     Unrecognised(PathBuf),
     /// The format needs a calibration file that is absent.
     #[error("{path}: calibration file missing")]
@@ -130,6 +136,30 @@ pub enum DatasetKind {
     Kitti,
     /// EuRoC MAV sequence (camera `cam0`).
     Euroc,
+    /// A plain folder of images ([`images`]).
+    Images,
+}
+
+/// Where [`Dataset::camera`] came from.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub enum CameraSource {
+    /// A calibration file of the dataset: KITTI `calib.txt` (`P0`), EuRoC `sensor.yaml`.
+    CalibrationFile(PathBuf),
+    /// The TUM camera (`freiburg1`, `freiburg2`, `freiburg3`) named by the folder name.
+    FolderName(String),
+    /// The TUM camera named in a file of the folder (the `# file: 'rgbd_dataset_freiburgN_...'`
+    /// header of `rgb.txt`, `depth.txt` or `groundtruth.txt`).
+    FileHeader(PathBuf),
+}
+
+impl std::fmt::Display for CameraSource {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            CameraSource::CalibrationFile(p) => write!(f, "calibration file {}", p.display()),
+            CameraSource::FolderName(name) => write!(f, "TUM {name} preset (from the folder name)"),
+            CameraSource::FileHeader(p) => write!(f, "TUM preset named in {}", p.display()),
+        }
+    }
 }
 
 /// One frame as listed by the dataset (nothing loaded yet).
@@ -161,14 +191,19 @@ pub struct DatasetConfig {
     pub depth_tolerance: f64,
     /// Maximum |t_frame - t_gt| (s) for [`Dataset::ground_truth_at`].
     pub ground_truth_tolerance: f64,
+    /// Frame rate (Hz) of a plain image folder: frame `i` at `i / fps` s. `None`: times from
+    /// the file names ([`images`]).
+    pub fps: Option<f64>,
 }
 
 impl Default for DatasetConfig {
-    /// 0.02 s for both, the default of the TUM benchmark's `associate.py`.
+    /// 0.02 s for both tolerances, the default of the TUM benchmark's `associate.py`; image
+    /// folders timed by their file names.
     fn default() -> Self {
         Self {
             depth_tolerance: 0.02,
             ground_truth_tolerance: 0.02,
+            fps: None,
         }
     }
 }
@@ -182,8 +217,11 @@ pub struct Dataset {
     pub root: PathBuf,
     /// Frames in capture order.
     pub frames: Vec<FrameInfo>,
-    /// The camera from the calibration file; `None` for TUM (no calibration file).
+    /// The camera the dataset describes: its calibration file (KITTI, EuRoC) or the TUM
+    /// preset its folder name or file headers name; `None` when it says nothing.
     pub camera: Option<Camera>,
+    /// Where [`Dataset::camera`] came from (`None` exactly when `camera` is `None`).
+    pub camera_source: Option<CameraSource>,
     /// Depth-image units per metre (TUM: 5000), `None` without depth.
     pub depth_scale: Option<f64>,
     /// Ground truth as published: camera `T_wc` for TUM and KITTI, **body (IMU) `T_wb`** for
@@ -216,6 +254,8 @@ impl Dataset {
             kitti::open(root, config)?
         } else if root.join("mav0/cam0/data.csv").is_file() {
             euroc::open(root, config)?
+        } else if images::has_images(root) {
+            images::open(root, config)?
         } else {
             return Err(DatasetError::Unrecognised(root.into()));
         };
@@ -311,6 +351,38 @@ fn read_text(path: &Path) -> Result<String, DatasetError> {
         path: path.to_path_buf(),
         source,
     })
+}
+
+/// The records of a comma-separated file with `#` comment lines and no header, fields
+/// trimmed, each with its one-based line number (read with the `csv` crate).
+fn csv_records(path: &Path) -> Result<Vec<(usize, csv::StringRecord)>, DatasetError> {
+    let mut reader = csv::ReaderBuilder::new()
+        .has_headers(false)
+        .comment(Some(b'#'))
+        .flexible(true)
+        .trim(csv::Trim::All)
+        .from_path(path)
+        .map_err(|e| csv_error(path, e))?;
+    reader
+        .records()
+        .map(|r| {
+            let record = r.map_err(|e| csv_error(path, e))?;
+            let line = record.position().map_or(0, |p| p.line() as usize);
+            Ok((line, record))
+        })
+        .filter(|r| !matches!(r, Ok((_, rec)) if rec.iter().all(str::is_empty)))
+        .collect()
+}
+
+fn csv_error(path: &Path, e: csv::Error) -> DatasetError {
+    let line = e.position().map_or(0, |p| p.line() as usize);
+    match e.into_kind() {
+        csv::ErrorKind::Io(source) => DatasetError::Io {
+            path: path.to_path_buf(),
+            source,
+        },
+        other => parse_error(path, line, format!("{other:?}")),
+    }
 }
 
 /// A [`DatasetError::Parse`] for `path` at one-based `line`.

@@ -1,53 +1,44 @@
-//! A 5x7 bitmap font for plot labels: digits, `.`, `-`, `:`, space and the capitals the
-//! labels use. Each glyph is seven rows of five bits, the most significant bit leftmost.
+//! The embedded font: DejaVu Sans 2.37 (Debian `fonts-dejavu-core`; licence in
+//! `assets/fonts/DejaVuSans-LICENSE.txt`: Bitstream Vera licence, DejaVu changes in the
+//! public domain), so that text renders identically on any machine without system fonts.
 
-/// Rows of the glyph for `c`, `None` for characters the font does not have.
-pub fn glyph(c: char) -> Option<[u8; 7]> {
-    Some(match c {
-        '0' => [0x0E, 0x11, 0x13, 0x15, 0x19, 0x11, 0x0E],
-        '1' => [0x04, 0x0C, 0x04, 0x04, 0x04, 0x04, 0x0E],
-        '2' => [0x0E, 0x11, 0x01, 0x02, 0x04, 0x08, 0x1F],
-        '3' => [0x1E, 0x01, 0x01, 0x0E, 0x01, 0x01, 0x1E],
-        '4' => [0x02, 0x06, 0x0A, 0x12, 0x1F, 0x02, 0x02],
-        '5' => [0x1F, 0x10, 0x1E, 0x01, 0x01, 0x11, 0x0E],
-        '6' => [0x06, 0x08, 0x10, 0x1E, 0x11, 0x11, 0x0E],
-        '7' => [0x1F, 0x01, 0x02, 0x04, 0x08, 0x08, 0x08],
-        '8' => [0x0E, 0x11, 0x11, 0x0E, 0x11, 0x11, 0x0E],
-        '9' => [0x0E, 0x11, 0x11, 0x0F, 0x01, 0x02, 0x0C],
-        '.' => [0x00, 0x00, 0x00, 0x00, 0x00, 0x0C, 0x0C],
-        '-' => [0x00, 0x00, 0x00, 0x1F, 0x00, 0x00, 0x00],
-        ':' => [0x00, 0x0C, 0x0C, 0x00, 0x0C, 0x0C, 0x00],
-        ' ' => [0x00; 7],
-        'A' => [0x0E, 0x11, 0x11, 0x1F, 0x11, 0x11, 0x11],
-        'D' => [0x1E, 0x11, 0x11, 0x11, 0x11, 0x11, 0x1E],
-        'E' => [0x1F, 0x10, 0x10, 0x1E, 0x10, 0x10, 0x1F],
-        'G' => [0x0E, 0x11, 0x10, 0x17, 0x11, 0x11, 0x0F],
-        'I' => [0x0E, 0x04, 0x04, 0x04, 0x04, 0x04, 0x0E],
-        'M' => [0x11, 0x1B, 0x15, 0x15, 0x11, 0x11, 0x11],
-        'S' => [0x0F, 0x10, 0x10, 0x0E, 0x01, 0x01, 0x1E],
-        'T' => [0x1F, 0x04, 0x04, 0x04, 0x04, 0x04, 0x04],
-        'X' => [0x11, 0x11, 0x0A, 0x04, 0x0A, 0x11, 0x11],
-        'Z' => [0x1F, 0x01, 0x02, 0x04, 0x08, 0x10, 0x1F],
-        _ => return None,
-    })
+use ab_glyph::FontRef;
+
+/// The TrueType file of DejaVu Sans.
+pub const DEJAVU_SANS: &[u8] = include_bytes!("../../assets/fonts/DejaVuSans.ttf");
+
+/// Family name under which [`register_plot_font`] makes the font known to `plotters`.
+pub const PLOT_FAMILY: &str = "sans-serif";
+
+/// DejaVu Sans for `imageproc` text drawing.
+pub fn font() -> FontRef<'static> {
+    FontRef::try_from_slice(DEJAVU_SANS).expect("the embedded DejaVu Sans is a valid TrueType font")
+}
+
+/// Registers DejaVu Sans with `plotters` as [`PLOT_FAMILY`] (idempotent, cheap after the
+/// first call); plotters' `ab_glyph` backend has no other font source.
+pub fn register_plot_font() {
+    static ONCE: std::sync::Once = std::sync::Once::new();
+    ONCE.call_once(|| {
+        for style in [
+            plotters::style::FontStyle::Normal,
+            plotters::style::FontStyle::Bold,
+        ] {
+            plotters::style::register_font(PLOT_FAMILY, style, DEJAVU_SANS)
+                .unwrap_or_else(|_| unreachable!("the embedded DejaVu Sans is a valid font"));
+        }
+    });
 }
 
 #[cfg(test)]
 mod tests {
-    use super::glyph;
+    use ab_glyph::Font;
 
     #[test]
-    fn glyphs_are_five_bits_wide_and_distinct() {
-        let chars: Vec<char> = "0123456789.-: ADEGIMSTXZ".chars().collect();
-        let glyphs: Vec<[u8; 7]> = chars.iter().map(|&c| glyph(c).unwrap()).collect();
-        assert!(glyphs.iter().flatten().all(|row| *row < 32));
-        for (i, a) in glyphs.iter().enumerate() {
-            assert!(
-                glyphs[i + 1..].iter().all(|b| a != b),
-                "{} repeats",
-                chars[i]
-            );
+    fn the_embedded_font_has_lower_case_digits_and_signs() {
+        let f = super::font();
+        for c in "aZ09-.µ°".chars() {
+            assert_ne!(f.glyph_id(c).0, 0, "glyph for {c:?}");
         }
-        assert!(glyph('q').is_none());
     }
 }

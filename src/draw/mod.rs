@@ -1,9 +1,16 @@
 //! Pictures a person can check at a glance: keypoints, matches side by side, difference images
-//! and residual maps. Plain raster drawing on `image::RgbImage`, nothing more.
+//! and residual maps, each with a caption or a colour bar. Shapes and text are drawn with
+//! `imageproc` (text in the embedded DejaVu Sans, [`font`]).
 
-mod font;
+pub mod font;
 
+use ab_glyph::PxScale;
 use image::{GrayImage, Rgb, RgbImage};
+use imageproc::drawing::{
+    draw_filled_rect_mut, draw_hollow_circle_mut, draw_hollow_rect_mut, draw_line_segment_mut,
+    draw_text_mut, text_size,
+};
+use imageproc::rect::Rect;
 
 /// Green: inliers and keypoints.
 pub const GREEN: Rgb<u8> = Rgb([40, 220, 60]);
@@ -11,73 +18,74 @@ pub const GREEN: Rgb<u8> = Rgb([40, 220, 60]);
 pub const RED: Rgb<u8> = Rgb([230, 40, 40]);
 /// Yellow: highlights.
 pub const YELLOW: Rgb<u8> = Rgb([250, 220, 40]);
+/// Dark blue: pixels of a heat map without data (NaN).
+pub const NO_DATA: Rgb<u8> = Rgb([0, 0, 60]);
+const WHITE: Rgb<u8> = Rgb([255, 255, 255]);
+const BLACK: Rgb<u8> = Rgb([0, 0, 0]);
+const BAND: Rgb<u8> = Rgb([30, 30, 30]);
+/// Text height of captions and colour-bar labels, pixels.
+const TEXT_PX: f32 = 16.0;
+/// Width of the legend strip right of a heat map, pixels.
+const BAR_STRIP: u32 = 150;
 
 /// A grey image as RGB.
 pub fn to_rgb(img: &GrayImage) -> RgbImage {
-    RgbImage::from_fn(img.width(), img.height(), |x, y| {
-        let g = img.get_pixel(x, y)[0];
-        Rgb([g, g, g])
-    })
+    image::DynamicImage::ImageLuma8(img.clone()).to_rgb8()
 }
 
-fn put(img: &mut RgbImage, x: i64, y: i64, c: Rgb<u8>) {
-    if x >= 0 && y >= 0 && (x as u32) < img.width() && (y as u32) < img.height() {
-        img.put_pixel(x as u32, y as u32, c);
-    }
-}
-
-/// A one-pixel line from `a` to `b` (Bresenham), clipped to the image.
+/// A one-pixel line from `a` to `b` (pixel positions), clipped to the image.
 pub fn line(img: &mut RgbImage, a: (f32, f32), b: (f32, f32), c: Rgb<u8>) {
-    let (mut x0, mut y0) = (a.0.round() as i64, a.1.round() as i64);
-    let (x1, y1) = (b.0.round() as i64, b.1.round() as i64);
-    let (dx, dy) = ((x1 - x0).abs(), -(y1 - y0).abs());
-    let (sx, sy) = (if x0 < x1 { 1 } else { -1 }, if y0 < y1 { 1 } else { -1 });
-    let mut err = dx + dy;
-    loop {
-        put(img, x0, y0, c);
-        if x0 == x1 && y0 == y1 {
-            break;
-        }
-        let e2 = 2 * err;
-        if e2 >= dy {
-            err += dy;
-            x0 += sx;
-        }
-        if e2 <= dx {
-            err += dx;
-            y0 += sy;
-        }
-    }
+    draw_line_segment_mut(img, a, b, c);
 }
 
 /// A circle outline of radius `r` pixels around `center`.
 pub fn circle(img: &mut RgbImage, center: (f32, f32), r: f32, c: Rgb<u8>) {
-    let steps = (r * 8.0).max(12.0) as usize;
-    for k in 0..steps {
-        let (s0, c0) = (k as f32 / steps as f32 * std::f32::consts::TAU).sin_cos();
-        let (s1, c1) = ((k + 1) as f32 / steps as f32 * std::f32::consts::TAU).sin_cos();
-        line(
-            img,
-            (center.0 + r * c0, center.1 + r * s0),
-            (center.0 + r * c1, center.1 + r * s1),
-            c,
-        );
-    }
+    let centre = (center.0.round() as i32, center.1.round() as i32);
+    draw_hollow_circle_mut(img, centre, r.round().max(1.0) as i32, c);
 }
 
-/// Keypoints drawn as circles (radius grows with the pyramid scale) on a grey image.
+/// Writes `text` in DejaVu Sans, `height` pixels high, with its top-left corner at `(x, y)`.
+pub fn text(img: &mut RgbImage, (x, y): (i32, i32), text: &str, height: f32, c: Rgb<u8>) {
+    draw_text_mut(img, c, x, y, PxScale::from(height), &font::font(), text);
+}
+
+/// `img` below a dark band holding `lines` of white text (one caption line each).
+pub fn with_caption(img: &RgbImage, lines: &[String]) -> RgbImage {
+    let line_h = TEXT_PX as u32 + 6;
+    let band = 6 + line_h * lines.len() as u32;
+    let mut out = RgbImage::from_pixel(img.width(), img.height() + band, BAND);
+    image::imageops::replace(&mut out, img, 0, band as i64);
+    for (k, l) in lines.iter().enumerate() {
+        text(
+            &mut out,
+            (6, 4 + (k as u32 * line_h) as i32),
+            l,
+            TEXT_PX,
+            WHITE,
+        );
+    }
+    out
+}
+
+/// Keypoints drawn as circles (radius grows with the pyramid scale) on a grey image, with a
+/// caption giving their number.
 pub fn keypoints(img: &GrayImage, points: &[(f32, f32, f32)]) -> RgbImage {
     let mut out = to_rgb(img);
     for &(x, y, scale) in points {
         circle(&mut out, (x, y), 3.0 * scale, GREEN);
     }
-    out
+    let caption = format!(
+        "{} ORB keypoints (green circles, radius 3 px x pyramid scale)",
+        points.len()
+    );
+    with_caption(&out, &[caption])
 }
 
 /// A match to draw: position in image 1, position in image 2 (pixels), inlier or not.
 pub type MatchLine = ((f32, f32), (f32, f32), bool);
 
-/// Two images side by side with a line per match, green for inliers and red for outliers.
+/// Two images side by side with a line per match, green for inliers and red for outliers
+/// (add a caption with [`with_caption`]).
 pub fn matches(img1: &GrayImage, img2: &GrayImage, pairs: &[MatchLine]) -> RgbImage {
     let (w1, w2) = (img1.width(), img2.width());
     let h = img1.height().max(img2.height());
@@ -94,45 +102,85 @@ pub fn matches(img1: &GrayImage, img2: &GrayImage, pairs: &[MatchLine]) -> RgbIm
     out
 }
 
-/// A heat image of non-negative values: black at 0, white at `max` and above, and a dark blue
-/// where the value is NaN (no data).
+/// The grey level of `v` on a scale from 0 (black) to `max` (white), saturating.
+fn grey(v: f32, max: f32) -> Rgb<u8> {
+    let g = (v / max.max(f32::MIN_POSITIVE) * 255.0).clamp(0.0, 255.0) as u8;
+    Rgb([g, g, g])
+}
+
+/// A heat map of non-negative intensity differences (grey levels, row-major `width x
+/// height` values): black at 0, white at `max` and above, [`NO_DATA`] where a value is NaN.
+/// A strip on the right holds the colour bar with its scale and the "no data" legend.
+///
+/// ```
+/// let img = vofront::draw::heat(4, 2, &[0.0, 8.0, 16.0, f32::NAN, 0.0, 0.0, 0.0, 0.0], 16.0);
+/// assert_eq!(img.get_pixel(0, 0).0, [0, 0, 0]);
+/// assert_eq!(img.get_pixel(2, 0).0, [255, 255, 255]);
+/// assert_eq!(*img.get_pixel(3, 0), vofront::draw::NO_DATA);
+/// ```
 pub fn heat(width: u32, height: u32, values: &[f32], max: f32) -> RgbImage {
-    RgbImage::from_fn(width, height, |x, y| {
-        let v = values[(y * width + x) as usize];
-        if v.is_nan() {
-            Rgb([0, 0, 60])
+    let mut out = RgbImage::from_pixel(width + BAR_STRIP, height.max(200), WHITE);
+    for (i, v) in values.iter().take((width * height) as usize).enumerate() {
+        let (x, y) = (i as u32 % width, i as u32 / width);
+        let c = if v.is_nan() { NO_DATA } else { grey(*v, max) };
+        out.put_pixel(x, y, c);
+    }
+    colour_bar(&mut out, width + 12, max);
+    out
+}
+
+/// The colour bar of [`heat`] at column `x0`: a vertical gradient from `max` (top) to 0 with
+/// five labelled ticks, its quantity, and a [`NO_DATA`] swatch.
+fn colour_bar(img: &mut RgbImage, x0: u32, max: f32) {
+    let (top, bar_w) = (60u32, 18u32);
+    let bar_h = img.height().saturating_sub(top + 50).max(40);
+    text(img, (x0 as i32, 6), "|difference|", TEXT_PX, BLACK);
+    text(img, (x0 as i32, 26), "(grey levels)", TEXT_PX, BLACK);
+    for dy in 0..bar_h {
+        let v = max * (1.0 - dy as f32 / (bar_h - 1) as f32);
+        for dx in 0..bar_w {
+            img.put_pixel(x0 + dx, top + dy, grey(v, max));
+        }
+    }
+    draw_hollow_rect_mut(
+        img,
+        Rect::at(x0 as i32, top as i32).of_size(bar_w, bar_h),
+        BLACK,
+    );
+    for k in 0..=4 {
+        let y = top + (bar_h - 1) * k / 4;
+        let v = max * (1.0 - k as f32 / 4.0);
+        let label = if k == 0 {
+            format!(">= {v:.0}")
         } else {
-            let g = (v / max.max(f32::MIN_POSITIVE) * 255.0).clamp(0.0, 255.0) as u8;
-            Rgb([g, g, g])
-        }
-    })
-}
-
-/// Writes `text` with its top-left corner at `(x, y)` in the 5x7 font, each font pixel drawn
-/// as a `scale x scale` block; characters the font lacks are left blank. Upper-case labels only.
-pub fn text(img: &mut RgbImage, (x, y): (i64, i64), text: &str, scale: i64, c: Rgb<u8>) {
-    for (k, ch) in text.chars().enumerate() {
-        let Some(rows) = font::glyph(ch) else {
-            continue;
+            format!("{v:.0}")
         };
-        let x0 = x + k as i64 * 6 * scale;
-        for (r, bits) in rows.iter().enumerate() {
-            for col in 0..5 {
-                if bits & (0x10 >> col) != 0 {
-                    for (dy, dx) in (0..scale).flat_map(|dy| (0..scale).map(move |dx| (dy, dx))) {
-                        put(img, x0 + col * scale + dx, y + r as i64 * scale + dy, c);
-                    }
-                }
-            }
-        }
+        line(
+            img,
+            ((x0 + bar_w) as f32, y as f32),
+            ((x0 + bar_w + 4) as f32, y as f32),
+            BLACK,
+        );
+        let (_, th) = text_size(PxScale::from(TEXT_PX), &font::font(), &label);
+        text(
+            img,
+            ((x0 + bar_w + 7) as i32, y as i32 - th as i32 / 2 - 2),
+            &label,
+            TEXT_PX,
+            BLACK,
+        );
     }
-}
-
-/// A length in metres as a short upper-case label: millimetres below 10 cm.
-pub fn metres_label(v: f64) -> String {
-    if v.abs() < 0.1 {
-        format!("{:.2} MM", v * 1e3)
-    } else {
-        format!("{v:.3} M")
-    }
+    let legend_y = top + bar_h + 16;
+    draw_filled_rect_mut(
+        img,
+        Rect::at(x0 as i32, legend_y as i32).of_size(bar_w, 14),
+        NO_DATA,
+    );
+    text(
+        img,
+        ((x0 + bar_w + 7) as i32, legend_y as i32 - 2),
+        "no data",
+        TEXT_PX,
+        BLACK,
+    );
 }

@@ -1,6 +1,7 @@
 //! Trajectory evaluation as the `evo` package computes it: absolute trajectory error (ATE,
 //! `evo_ape`, translation part) after optional Umeyama alignment, relative pose error over
-//! consecutive frames (RPE, `evo_rpe --delta 1 --delta_unit f`), and a PNG plot.
+//! pose pairs `delta` frames, metres or seconds apart (RPE, `evo_rpe --delta D --delta_unit
+//! f|m [--all_pairs]`), and plots ([`plot`]).
 //!
 //! Both start by associating timestamps with [`associate`] (evo's nearest-time rule,
 //! default `max_dt = 0.01` s). With `Q_k` the ground truth and `P_k` the estimate of the
@@ -10,16 +11,19 @@
 //!   (identity for [`Alignment::None`], rigid for [`Alignment::Se3`], similarity for
 //!   [`Alignment::Sim3`]); `P_k <- S P_k` (positions scaled, rotated and shifted);
 //! - ATE: `e_k = |trans(Q_k) - trans(P_k)|` metres (evo `--pose_relation trans_part`);
-//! - RPE: `E_k = (Q_k^-1 Q_{k+1})^-1 (P_k^-1 P_{k+1})`, translation error `|trans(E_k)|`
-//!   metres (`trans_part`), rotation error `angle(rot(E_k))` degrees (`angle_deg`).
+//! - RPE: for each pose pair `(i, j)` chosen by [`RpeConfig`] (`delta` frames, metres of
+//!   travelled path or seconds, consecutive or all pairs), `E = (Q_i^-1 Q_j)^-1 (P_i^-1 P_j)`,
+//!   translation error `|trans(E)|` metres (`trans_part`), rotation error `angle(rot(E))`
+//!   degrees (`angle_deg`); see [`rpe_with`].
 //!
 //! Statistics ([`Stats`]) are evo's: RMSE, mean, median (mean of the two middle values for
 //! an even count), population standard deviation, min and max.
 //!
 //! Conventions shared with evo (v1.38.1 checked to 1e-12 in `tests/eval.rs`): the ground
 //! truth is the reference (first argument), alignment uses positions only, and the RPE pairs
-//! are consecutive *associated* poses, so where the estimate skips frames a pair spans
-//! several ground-truth frames. Differences: [`associate`] drops the farther of two poses
+//! are counted in *associated* poses, so where the estimate skips frames a pair spans
+//! several ground-truth frames; evo picks metre pairs on the (aligned) estimate unless
+//! `--pairs_from_reference` ([`RpeConfig::pairs_from_reference`]). Differences: [`associate`] drops the farther of two poses
 //! that pick the same partner (evo keeps both; only possible when two stamps are less than
 //! `2 max_dt` apart); alignment needs at least 3 associated poses (evo fails later, on the
 //! rank test, with fewer).
@@ -42,11 +46,13 @@
 //! ```
 
 pub mod plot;
+mod rpe;
 pub mod umeyama;
 
 use nalgebra::Isometry3;
 use thiserror::Error;
 
+pub use rpe::{rpe, rpe_with, DeltaUnit, RpeConfig, RpeResult};
 pub use umeyama::{umeyama, Sim3};
 
 use crate::trajectory::{associate, Trajectory};
@@ -66,6 +72,15 @@ pub enum EvalError {
     /// The positions are collinear or coincident: the alignment is not unique.
     #[error("degenerate point configuration: Umeyama alignment is not possible")]
     Degenerate,
+    /// The association tolerance is negative or not a number.
+    #[error("largest timestamp difference {0} s is invalid: it must be zero or positive")]
+    BadMaxDt(f64),
+    /// The RPE delta is not positive (or not a whole number of frames).
+    #[error("RPE delta {0} is invalid: it must be positive, and a whole number for frames")]
+    BadDelta(f64),
+    /// No pose pair is `delta` apart (evo: "produced an empty index list").
+    #[error("no pose pair is {0} apart: try a smaller delta or a larger tolerance")]
+    NoPairs(String),
 }
 
 /// How the estimate is aligned to the ground truth before computing errors.
@@ -98,8 +113,8 @@ impl Default for EvalConfig {
     }
 }
 
-/// Summary statistics of a list of errors, as evo prints them.
-#[derive(Debug, Clone, Copy, PartialEq)]
+/// Summary statistics of a list of errors, as evo prints them (serialised with evo's key names).
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
 pub struct Stats {
     /// `sqrt(mean(e^2))`.
     pub rmse: f64,
@@ -165,35 +180,23 @@ pub struct AteResult {
     pub stats: Stats,
 }
 
-/// Result of [`rpe`].
-#[derive(Debug, Clone, PartialEq)]
-pub struct RpeResult {
-    /// Associated index pairs `(ground-truth index, estimate index)`.
-    pub pairs: Vec<(usize, usize)>,
-    /// `|trans(E_k)|` metres, one per consecutive associated pair.
-    pub translation_errors: Vec<f64>,
-    /// `angle(rot(E_k))` degrees, one per consecutive associated pair.
-    pub rotation_errors_deg: Vec<f64>,
-    /// Statistics of the translation errors (metres).
-    pub translation: Stats,
-    /// Statistics of the rotation errors (degrees).
-    pub rotation_deg: Stats,
-}
-
 /// The associated, aligned pose pairs `(t_gt, Q_k, t_est, P_k)` and the alignment.
-struct Associated {
-    pairs: Vec<(usize, usize)>,
-    gt: Vec<(f64, Isometry3<f64>)>,
-    est: Vec<(f64, Isometry3<f64>)>,
-    alignment: Sim3,
+pub(crate) struct Associated {
+    pub(crate) pairs: Vec<(usize, usize)>,
+    pub(crate) gt: Vec<(f64, Isometry3<f64>)>,
+    pub(crate) est: Vec<(f64, Isometry3<f64>)>,
+    pub(crate) alignment: Sim3,
 }
 
-fn associate_and_align(
+pub(crate) fn associate_and_align(
     gt: &Trajectory,
     est: &Trajectory,
     config: &EvalConfig,
     min_pairs: usize,
 ) -> Result<Associated, EvalError> {
+    if config.max_dt.is_nan() || config.max_dt < 0.0 {
+        return Err(EvalError::BadMaxDt(config.max_dt));
+    }
     let pairs = associate(gt, est, config.max_dt);
     if pairs.len() < min_pairs {
         return Err(EvalError::TooFewPoses(pairs.len()));
@@ -243,35 +246,5 @@ pub fn ate(gt: &Trajectory, est: &Trajectory, config: &EvalConfig) -> Result<Ate
         aligned: Trajectory::new(a.est),
         errors,
         stats,
-    })
-}
-
-/// Relative pose error over consecutive associated poses (delta = 1 frame), as
-/// `evo_rpe tum gt est --delta 1 --delta_unit f` with `--pose_relation trans_part` and
-/// `angle_deg`. Needs two associated pairs (three with alignment, which only matters for
-/// [`Alignment::Sim3`]: a rigid alignment leaves relative poses unchanged).
-pub fn rpe(gt: &Trajectory, est: &Trajectory, config: &EvalConfig) -> Result<RpeResult, EvalError> {
-    let min_pairs = if config.alignment == Alignment::None {
-        2
-    } else {
-        3
-    };
-    let a = associate_and_align(gt, est, config, min_pairs)?;
-    let (mut trans, mut rot) = (Vec::new(), Vec::new());
-    for (q, p) in a.gt.windows(2).zip(a.est.windows(2)) {
-        let q_rel = q[0].1.inverse() * q[1].1;
-        let p_rel = p[0].1.inverse() * p[1].1;
-        let e = q_rel.inverse() * p_rel;
-        trans.push(e.translation.vector.norm());
-        let quat = e.rotation.coords;
-        let angle = 2.0 * quat.xyz().norm().atan2(quat.w.abs());
-        rot.push(angle.to_degrees());
-    }
-    Ok(RpeResult {
-        pairs: a.pairs,
-        translation: Stats::from_errors(&trans).ok_or(EvalError::NotFinite)?,
-        rotation_deg: Stats::from_errors(&rot).ok_or(EvalError::NotFinite)?,
-        translation_errors: trans,
-        rotation_errors_deg: rot,
     })
 }

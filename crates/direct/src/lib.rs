@@ -12,6 +12,21 @@
 //! Every aligner runs a robust (Huber or Student-t with MAD scale) Levenberg-Marquardt loop
 //! (module `lm`) whose normal equations are accumulated in parallel with rayon, and returns typed
 //! [`DirectError`]s for bad input (size mismatch, flat images, degenerate geometry).
+//!
+//! ```
+//! use vofront_direct::translation::{align_translation, TranslationConfig};
+//! use vofront_direct::Plane;
+//! // A smooth pattern and the same pattern moved by (3, -2) pixels: I2(x + d) = I1(x).
+//! let f = |x: f32, y: f32| 128.0 + 50.0 * (x / 7.0).sin() * (y / 9.0).cos() + 30.0 * ((x + y) / 13.0).sin();
+//! let (w, h) = (160, 120);
+//! let grid = |dx: f32, dy: f32| -> Vec<f32> {
+//!     (0..w * h).map(|i| f((i % w) as f32 - dx, (i / w) as f32 - dy)).collect()
+//! };
+//! let img1 = Plane::new(w, h, grid(0.0, 0.0)).unwrap();
+//! let img2 = Plane::new(w, h, grid(3.0, -2.0)).unwrap();
+//! let fit = align_translation(&img1, &img2, &TranslationConfig::default()).unwrap();
+//! assert!((fit.d.x - 3.0).abs() < 0.05 && (fit.d.y + 2.0).abs() < 0.05, "{:?}", fit.d);
+//! ```
 #![warn(missing_docs)]
 
 pub mod error;

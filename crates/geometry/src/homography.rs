@@ -115,6 +115,22 @@ pub enum HomographyDecomposition {
 
 /// Decomposes a homography between normalized coordinates (Faugeras' SVD method): with
 /// `H = U diag(d1, d2, d3) V^T`, `s = det U det V`, the candidate motions for `d' = +-d2`.
+///
+/// ```
+/// use nalgebra::{Rotation3, Vector3};
+/// use vofront_geometry::homography::{decompose_homography, HomographyDecomposition};
+/// // Plane n^T X = 2 in camera 1, motion (R, t): H = R + t n^T / 2, known up to scale.
+/// let r = Rotation3::from_euler_angles(0.05, -0.1, 0.02);
+/// let t = Vector3::new(0.3, -0.1, 0.05);
+/// let n = Vector3::new(0.1, -0.2, 1.0).normalize();
+/// let h = (r.matrix() + t * n.transpose() / 2.0) * 3.7;
+/// let HomographyDecomposition::Motion(candidates) = decompose_homography(&h) else {
+///     panic!("a general motion");
+/// };
+/// assert!(candidates.iter().any(|(r2, t2, n2)| {
+///     r2.angle_to(&r) < 1e-9 && (t2 - t.normalize()).norm() < 1e-9 && (n2 - n).norm() < 1e-9
+/// }));
+/// ```
 pub fn decompose_homography(h: &Matrix3<f64>) -> HomographyDecomposition {
     use nalgebra::Rotation3;
     let svd = h.svd(true, true);

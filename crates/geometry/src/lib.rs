@@ -11,6 +11,30 @@
 //!
 //! Pose convention everywhere: `T_21: Isometry3<f64>` maps points of frame 1 into frame 2,
 //! `x2 = R x1 + t`.
+//!
+//! The main entry point, two pixel point lists in, the relative pose out:
+//!
+//! ```
+//! use nalgebra::{Isometry3, Point3, Translation3, UnitQuaternion, Vector2};
+//! use vofront_geometry::relative_pose::{estimate_relative_pose, RelativePoseConfig};
+//! use vofront_geometry::{Camera, Pinhole};
+//! let camera = Camera::pinhole(Pinhole { fx: 500.0, fy: 500.0, cx: 320.0, cy: 240.0 });
+//! let t_21 = Isometry3::from_parts(
+//!     Translation3::new(0.2, 0.0, 0.02),
+//!     UnitQuaternion::from_euler_angles(0.01, -0.03, 0.02),
+//! );
+//! let pixel = |p: Point3<f64>| Vector2::new(500.0 * p.x / p.z + 320.0, 500.0 * p.y / p.z + 240.0);
+//! let (mut x1, mut x2) = (Vec::new(), Vec::new());
+//! for i in 0..100 {
+//!     let k = i as f64;
+//!     let p = Point3::new(2.0 * (1.7 * k).sin(), 1.5 * (2.3 * k).cos(), 4.0 + (0.9 * k).sin());
+//!     x1.push(pixel(p));
+//!     x2.push(pixel(t_21 * p));
+//! }
+//! let fit = estimate_relative_pose(&x1, &x2, &camera, &RelativePoseConfig::default()).unwrap();
+//! assert!(fit.rotation.angle_to(&t_21.rotation) < 1e-6);
+//! assert!((fit.translation - t_21.translation.vector.normalize()).norm() < 1e-6);
+//! ```
 #![warn(missing_docs)]
 
 pub mod camera;

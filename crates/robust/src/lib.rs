@@ -14,7 +14,7 @@
 //!   system ([`NormalEquations`] or a Schur complement), with one accept/reject rule, one
 //!   damping update and one set of stop reasons;
 //! - [`quality`]: the quality record (verdict, reasons, support, covariance) of every estimate;
-//! - [`irls`]: iteratively reweighted least squares on residual rows through that driver,
+//! - [`irls`](mod@irls): iteratively reweighted least squares on residual rows through that driver,
 //!   with a covariance output (`None` when unknown).
 //!
 //! ```

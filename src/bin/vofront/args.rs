@@ -4,7 +4,7 @@ use std::path::PathBuf;
 
 use clap::{Args, Parser, Subcommand, ValueEnum};
 use vofront::geometry::camera::{Camera, Distortion, Pinhole};
-use vofront::presets::{camera_preset, PRESETS};
+use vofront::presets::{camera_preset, principal_point_warning, PRESETS};
 
 /// vofront: visual-odometry front-end. Without a command, runs the synthetic demo.
 #[derive(Debug, Parser)]
@@ -41,19 +41,25 @@ pub struct CameraArgs {
     #[arg(long, value_name = "PRESET")]
     pub camera: Option<String>,
     /// Focal length along x, pixels [default: 525].
-    #[arg(long)]
+    #[arg(long, allow_negative_numbers = true)]
     pub fx: Option<f64>,
     /// Focal length along y, pixels [default: 525].
-    #[arg(long)]
+    #[arg(long, allow_negative_numbers = true)]
     pub fy: Option<f64>,
     /// Principal point x, pixels [default: 319.5].
-    #[arg(long)]
+    #[arg(long, allow_negative_numbers = true)]
     pub cx: Option<f64>,
     /// Principal point y, pixels [default: 239.5].
-    #[arg(long)]
+    #[arg(long, allow_negative_numbers = true)]
     pub cy: Option<f64>,
     /// Radial-tangential distortion k1,k2,p1,p2,k3 (fewer values: the rest are 0).
-    #[arg(long, value_name = "k1,k2,p1,p2,k3", value_delimiter = ',', num_args = 1..=5, allow_negative_numbers = true)]
+    #[arg(
+        long,
+        value_name = "k1,k2,p1,p2,k3",
+        value_delimiter = ',',
+        num_args = 1,
+        allow_hyphen_values = true
+    )]
     pub dist: Option<Vec<f64>>,
 }
 
@@ -66,6 +72,16 @@ impl CameraArgs {
             || self.cx.is_some()
             || self.cy.is_some()
             || self.dist.is_some()
+    }
+
+    /// Without any camera flag: the warning of [`principal_point_warning`] for the default
+    /// camera and an image of `size`; `None` when a flag was given or the default fits.
+    pub fn default_camera_warning(&self, size: (u32, u32)) -> Option<String> {
+        if self.is_given() {
+            return None;
+        }
+        let camera = self.camera().ok()?;
+        principal_point_warning(&camera, size).map(|w| format!("no --camera given: {w}"))
     }
 
     /// The camera these flags describe.
@@ -142,7 +158,7 @@ pub struct TwoViewArgs {
     #[arg(long, value_name = "PNG")]
     pub depth1: Option<PathBuf>,
     /// Depth units per metre in `--depth1`.
-    #[arg(long, default_value_t = 5000.0)]
+    #[arg(long, default_value_t = 5000.0, allow_negative_numbers = true)]
     pub depth_scale: f64,
     /// Which estimators to run.
     #[arg(long, value_enum, default_value_t = Method::All)]
@@ -153,8 +169,9 @@ pub struct TwoViewArgs {
     /// Print one JSON object instead of text.
     #[arg(long)]
     pub json: bool,
-    /// Write pictures (keypoints, matches, differences, residuals) into this folder.
-    #[arg(long, value_name = "DIR")]
+    /// Write pictures (keypoints, matches, differences, residuals) into this folder
+    /// (`--out-dir` alone: `vofront-out/two-view`).
+    #[arg(long, value_name = "DIR", num_args = 0..=1, default_missing_value = "vofront-out/two-view")]
     pub out_dir: Option<PathBuf>,
 }
 
@@ -183,6 +200,20 @@ pub enum AlignArg {
     None,
 }
 
+/// Unit of the RPE delta.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
+pub enum DeltaUnitArg {
+    /// Associated poses (evo `f`).
+    #[value(alias = "f")]
+    Frames,
+    /// Metres of travelled path (evo `m`).
+    #[value(alias = "m", alias = "metres")]
+    Meters,
+    /// Seconds of elapsed time.
+    #[value(alias = "s")]
+    Seconds,
+}
+
 /// Flags of `vofront eval`.
 #[derive(Debug, Args)]
 pub struct EvalArgs {
@@ -193,15 +224,48 @@ pub struct EvalArgs {
     /// Alignment before computing errors.
     #[arg(long, value_enum, default_value_t = AlignArg::Se3)]
     pub align: AlignArg,
-    /// Largest timestamp difference for associating poses, seconds.
-    #[arg(long, default_value_t = 0.01)]
+    /// Largest timestamp difference for associating poses, seconds (evo `--t_max_diff`).
+    #[arg(
+        long,
+        default_value_t = 0.01,
+        allow_negative_numbers = true,
+        alias = "t_max_diff"
+    )]
     pub max_dt: f64,
+    /// RPE: distance between the two poses of a pair, in `--delta-unit` (evo `--delta`).
+    #[arg(long, default_value_t = 1.0, allow_negative_numbers = true)]
+    pub delta: f64,
+    /// RPE: unit of `--delta` (evo `--delta_unit f|m`; seconds are not in evo).
+    #[arg(long, value_enum, default_value_t = DeltaUnitArg::Frames, alias = "delta_unit")]
+    pub delta_unit: DeltaUnitArg,
+    /// RPE: every pose starts a pair, not only the previous pair's end (evo `--all_pairs`).
+    #[arg(long, alias = "all_pairs")]
+    pub all_pairs: bool,
+    /// RPE with metres or seconds and `--all-pairs`: accepted relative miss of the delta
+    /// (evo `--delta_tol`).
+    #[arg(
+        long,
+        default_value_t = 0.1,
+        allow_negative_numbers = true,
+        alias = "delta_tol"
+    )]
+    pub delta_tol: f64,
+    /// RPE: choose the pairs on the ground truth, not on the estimate (evo
+    /// `--pairs_from_reference`).
+    #[arg(long, alias = "pairs_from_reference")]
+    pub pairs_from_reference: bool,
     /// Print one JSON object instead of text.
     #[arg(long)]
     pub json: bool,
-    /// Write a plot (top view of both trajectories, error over time) to this PNG.
+    /// Write a plot (top view of both trajectories, ATE over time) to this PNG (`.svg`: SVG).
     #[arg(long, value_name = "PNG")]
     pub plot: Option<PathBuf>,
+    /// Write every figure (top and side views, ATE, RPE over time, RPE histogram) here.
+    #[arg(long, value_name = "DIR", num_args = 0..=1, default_missing_value = "vofront-out/eval")]
+    pub plot_dir: Option<PathBuf>,
+    /// Figures of `--plot-dir` as SVG instead of PNG.
+    #[arg(long)]
+    pub svg: bool,
 }
 
 /// Sequence trackers.

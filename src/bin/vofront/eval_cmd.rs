@@ -1,25 +1,54 @@
 //! `vofront eval GT EST`: ATE and RPE of an estimated trajectory, as evo computes them.
 
-use serde_json::{json, Value};
-use vofront::eval::{ate, plot::write_plot, rpe, Alignment, EvalConfig, Stats};
+use std::path::PathBuf;
+
+use serde::Serialize;
+use vofront::eval::plot::{write_eval_plots, write_plot, PlotFormat};
+use vofront::eval::{ate, rpe_with, Alignment, DeltaUnit, EvalConfig, RpeConfig, Stats};
 use vofront::trajectory::Trajectory;
 
-use crate::args::{AlignArg, EvalArgs};
+use crate::args::{AlignArg, DeltaUnitArg, EvalArgs};
 
-/// Evo-style statistics as a JSON object.
-pub(crate) fn stats_json(s: &Stats) -> Value {
-    json!({"rmse": s.rmse, "mean": s.mean, "median": s.median, "std": s.std,
-           "min": s.min, "max": s.max, "count": s.count})
+/// The `--json` summary (keys are public: add, don't rename).
+#[derive(Serialize)]
+struct Summary {
+    /// Associated pose pairs.
+    pairs: usize,
+    alignment: &'static str,
+    scale: f64,
+    ate: Stats,
+    rpe: RpeSummary,
+    /// Pictures written (`--plot`, `--plot-dir`).
+    plots: Vec<PathBuf>,
+}
+
+#[derive(Serialize)]
+struct RpeSummary {
+    delta: f64,
+    delta_unit: &'static str,
+    all_pairs: bool,
+    /// Compared pose pairs.
+    pairs: usize,
+    translation: Stats,
+    rotation_deg: Stats,
+}
+
+fn unit(arg: DeltaUnitArg) -> DeltaUnit {
+    match arg {
+        DeltaUnitArg::Frames => DeltaUnit::Frames,
+        DeltaUnitArg::Meters => DeltaUnit::Meters,
+        DeltaUnitArg::Seconds => DeltaUnit::Seconds,
+    }
 }
 
 /// Runs `vofront eval`; an error message on failure.
 pub fn run(args: &EvalArgs) -> Result<(), String> {
     let gt = Trajectory::read_tum(&args.gt).map_err(|e| e.to_string())?;
     let est = Trajectory::read_tum(&args.est).map_err(|e| e.to_string())?;
-    let alignment = match args.align {
-        AlignArg::None => Alignment::None,
-        AlignArg::Se3 => Alignment::Se3,
-        AlignArg::Sim3 => Alignment::Sim3,
+    let (alignment, alignment_name) = match args.align {
+        AlignArg::None => (Alignment::None, "none"),
+        AlignArg::Se3 => (Alignment::Se3, "se3"),
+        AlignArg::Sim3 => (Alignment::Sim3, "sim3"),
     };
     let cfg = EvalConfig {
         max_dt: args.max_dt,
@@ -35,39 +64,73 @@ pub fn run(args: &EvalArgs) -> Result<(), String> {
         },
         ..cfg
     };
-    let rpe = rpe(&gt, &est, &rpe_cfg).map_err(|e| format!("RPE: {e}"))?;
+    let pairs = RpeConfig {
+        delta: args.delta,
+        unit: unit(args.delta_unit),
+        all_pairs: args.all_pairs,
+        delta_tol: args.delta_tol,
+        pairs_from_reference: args.pairs_from_reference,
+    };
+    let rpe = rpe_with(&gt, &est, &rpe_cfg, &pairs).map_err(|e| format!("RPE: {e}"))?;
+    let mut plots = Vec::new();
     if let Some(path) = &args.plot {
         write_plot(path, &gt, &ate.aligned, &ate.errors)
             .map_err(|e| format!("{}: {e}", path.display()))?;
+        plots.push(path.clone());
     }
+    if let Some(dir) = &args.plot_dir {
+        let format = if args.svg {
+            PlotFormat::Svg
+        } else {
+            PlotFormat::Png
+        };
+        let written = write_eval_plots(dir, format, &gt, &ate, &rpe)
+            .map_err(|e| format!("{}: {e}", dir.display()))?;
+        plots.extend(written);
+    }
+    let unit_name = pairs.unit.symbol();
     if args.json {
-        let out = json!({
-            "pairs": ate.pairs.len(),
-            "alignment": format!("{:?}", args.align).to_lowercase(),
-            "scale": ate.alignment.scale,
-            "ate": stats_json(&ate.stats),
-            "rpe": {"translation": stats_json(&rpe.translation), "rotation_deg": stats_json(&rpe.rotation_deg)},
-        });
-        outln!("{out}");
-    } else {
-        outln!("associated poses   {}", ate.pairs.len());
-        outln!(
-            "alignment          {:?} (scale {:.6})",
-            args.align,
-            ate.alignment.scale
-        );
-        outln!(
-            "ATE rmse           {:.6} m  (mean {:.6}, median {:.6}, max {:.6})",
-            ate.stats.rmse,
-            ate.stats.mean,
-            ate.stats.median,
-            ate.stats.max
-        );
-        outln!("RPE trans rmse     {:.6} m per frame", rpe.translation.rmse);
-        outln!(
-            "RPE rot rmse       {:.6} deg per frame",
-            rpe.rotation_deg.rmse
-        );
+        let summary = Summary {
+            pairs: ate.pairs.len(),
+            alignment: alignment_name,
+            scale: ate.alignment.scale,
+            ate: ate.stats,
+            rpe: RpeSummary {
+                delta: args.delta,
+                delta_unit: unit_name,
+                all_pairs: args.all_pairs,
+                pairs: rpe.delta_pairs.len(),
+                translation: rpe.translation,
+                rotation_deg: rpe.rotation_deg,
+            },
+            plots,
+        };
+        let text = serde_json::to_string(&summary).map_err(|e| e.to_string())?;
+        outln!("{text}");
+        return Ok(());
+    }
+    outln!("associated poses   {}", ate.pairs.len());
+    outln!(
+        "alignment          {alignment_name} (scale {:.6})",
+        ate.alignment.scale
+    );
+    outln!(
+        "ATE rmse           {:.6} m  (mean {:.6}, median {:.6}, max {:.6})",
+        ate.stats.rmse,
+        ate.stats.mean,
+        ate.stats.median,
+        ate.stats.max
+    );
+    let per = format!(
+        "per {} {unit_name}{}, {} pairs",
+        args.delta,
+        if args.all_pairs { ", all pairs" } else { "" },
+        rpe.delta_pairs.len()
+    );
+    outln!("RPE trans rmse     {:.6} m {per}", rpe.translation.rmse);
+    outln!("RPE rot rmse       {:.6} deg {per}", rpe.rotation_deg.rmse);
+    for p in &plots {
+        outln!("wrote              {}", p.display());
     }
     Ok(())
 }

@@ -28,7 +28,6 @@ use vofront::odometry::run::{
 use vofront::odometry::Tracker;
 
 use crate::args::{OdometryArgs, OdometryMethod};
-use crate::eval_cmd::stats_json;
 
 /// Exit code when tracking was lost for good (partial results are still written).
 pub const EXIT_LOST: u8 = 3;
@@ -218,7 +217,7 @@ fn report_json(
                 if let Some(path) = &args.plot {
                     plot(dataset, &a, path)?;
                 }
-                let mut stats = stats_json(&a.stats);
+                let mut stats = json!(a.stats);
                 stats["pairs"] = json!(a.pairs.len());
                 stats["alignment"] =
                     json!(format!("{:?}", alignment_for(args.method)).to_lowercase());
@@ -228,7 +227,7 @@ fn report_json(
         };
         rpe_json = match rpe {
             Ok(r) => {
-                json!({"translation": stats_json(&r.translation), "rotation_deg": stats_json(&r.rotation_deg)})
+                json!({"translation": json!(r.translation), "rotation_deg": json!(r.rotation_deg)})
             }
             Err(e) => json!({ "error": e }),
         };

@@ -172,11 +172,25 @@ pub fn write_pictures(dir: &Path, inputs: &Inputs, outcome: &Outcome) -> Result<
                 ((f1.xs[q], f1.ys[q]), (f2.xs[t], f2.ys[t]), inlier)
             })
             .collect();
-        save(
-            &draw::matches(&inputs.img1, &inputs.img2, &pairs),
-            dir,
-            "matches.png",
-        )?;
+        let e = &f.estimate;
+        let caption = [
+            format!(
+                "{} matches, {} inliers (green), {} outliers (red); model: {:?}",
+                f.matches.len(),
+                e.inlier_count,
+                f.matches.len() - e.inlier_count,
+                e.model
+            ),
+            format!(
+                "{} + {} keypoints; median parallax {:.2} deg; {} of the matches drawn",
+                f1.len(),
+                f2.len(),
+                e.parallax_deg,
+                pairs.len()
+            ),
+        ];
+        let picture = draw::matches(&inputs.img1, &inputs.img2, &pairs);
+        save(&draw::with_caption(&picture, &caption), dir, "matches.png")?;
     }
     if let Some(Ok((d, _))) = &outcome.translation {
         let (w, h) = inputs.img1.dimensions();
@@ -207,6 +221,9 @@ pub fn write_pictures(dir: &Path, inputs: &Inputs, outcome: &Outcome) -> Result<
 pub fn run(args: &TwoViewArgs) -> Result<Status, String> {
     let camera = args.camera.camera()?;
     let img1 = load_gray(&args.img1).map_err(|e| e.to_string())?;
+    if let Some(warning) = args.camera.default_camera_warning(img1.dimensions()) {
+        eprintln!("vofront: warning: {warning}");
+    }
     let img2 = load_gray(&args.img2).map_err(|e| e.to_string())?;
     let depth1 = match &args.depth1 {
         Some(p) => Some(load_depth(p, args.depth_scale).map_err(|e| e.to_string())?),
