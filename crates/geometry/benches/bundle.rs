@@ -12,6 +12,14 @@ fn bench_bundle(c: &mut Criterion) {
     let mut w = window::forward_window(11, 10, 2000, 0.5, 0.0);
     window::perturb(&mut w.problem, 12, 2, 0.5f64.to_radians(), 0.05, 0.1);
     let cfg = BundleConfig::default();
+    let report = bundle_adjust(&mut w.problem.clone(), &cfg).expect("well-posed window");
+    eprintln!(
+        "{} observations: {} rounds, {} iterations, {} culled",
+        w.problem.observations.len(),
+        report.rounds,
+        report.iterations,
+        report.culled.len()
+    );
     let mut group = c.benchmark_group("bundle");
     group.sample_size(20);
     group.bench_function("bundle_10kf_2000pts", |b| {

@@ -112,7 +112,8 @@ impl SchurSystem {
                 let wv = a.w * vinv;
                 let mut rb = b.fixed_rows_mut::<6>(6 * a.pose);
                 rb += wv * point.gp;
-                for c in &point.couplings {
+                // Upper block triangle only; mirrored below.
+                for c in point.couplings.iter().filter(|c| c.pose >= a.pose) {
                     let mut block = s.fixed_view_mut::<6, 6>(6 * a.pose, 6 * c.pose);
                     block -= wv * c.w.transpose();
                 }
@@ -124,6 +125,7 @@ impl SchurSystem {
             .into_par_iter()
             .fold(zero, point_terms)
             .reduce(zero, |(s1, b1), (s2, b2)| (s1 + s2, b1 + b2));
+        s.fill_lower_triangle_with_upper_triangle();
         for (i, (u, g)) in self.u.iter().zip(&self.gc).enumerate() {
             let mut block = s.fixed_view_mut::<6, 6>(6 * i, 6 * i);
             block += damped(u, lambda, damping);
