@@ -7,7 +7,8 @@
 //! - [`ransac`]: LO-MSAC driver generic over an [`ransac::Estimator`];
 //! - [`relative_pose`]: the full two-view pipeline [`estimate_relative_pose`];
 //! - [`triangulate`]: DLT and midpoint triangulation;
-//! - [`pnp`]: P3P in RANSAC with robust motion-only refinement, [`solve_pnp_ransac`].
+//! - [`pnp`]: P3P in RANSAC with robust motion-only refinement, [`solve_pnp_ransac`];
+//! - [`bundle`]: windowed bundle adjustment of keyframe poses and points, [`bundle_adjust`].
 //!
 //! Pose convention everywhere: `T_21: Isometry3<f64>` maps points of frame 1 into frame 2,
 //! `x2 = R x1 + t`.
@@ -37,6 +38,7 @@
 //! ```
 #![warn(missing_docs)]
 
+pub mod bundle;
 pub mod camera;
 pub mod error;
 pub mod essential;
@@ -49,6 +51,7 @@ pub mod relative_pose;
 pub mod triangulate;
 pub mod undistort_map;
 
+pub use bundle::{bundle_adjust, BundleConfig, BundleProblem, BundleReport, Observation};
 pub use camera::{Camera, CameraError, Distortion, Pinhole};
 pub use error::GeometryError;
 pub use pnp::{solve_pnp_ransac, PnpConfig, PnpResult};

@@ -282,3 +282,109 @@ pub fn levenberg_marquardt<P: LmProblem>(
         valid,
     })
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use nalgebra::Vector2;
+
+    /// Rosenbrock's valley as least squares: `r = (10 (y - x^2), 1 - x)`, minimum at `(1, 1)`.
+    /// With `wrong_sign` the Jacobian is negated, so that every step climbs.
+    struct Rosenbrock {
+        wrong_sign: bool,
+        residuals: Vector2<f64>,
+        at: Vector2<f64>,
+    }
+
+    impl LmProblem for Rosenbrock {
+        type State = Vector2<f64>;
+        type System = NormalEquations<2>;
+
+        fn evaluate(&mut self, p: &Vector2<f64>) -> usize {
+            self.at = *p;
+            self.residuals = Vector2::new(10.0 * (p.y - p.x * p.x), 1.0 - p.x);
+            2
+        }
+
+        fn cost(&self) -> f64 {
+            0.5 * self.residuals.norm_squared()
+        }
+
+        fn linearize(&mut self) -> NormalEquations<2> {
+            let sign = if self.wrong_sign { -1.0 } else { 1.0 };
+            let mut ne = NormalEquations::new();
+            let x = self.at.x;
+            ne.add(
+                &(sign * SVector::from([-20.0 * x, 10.0])),
+                self.residuals.x,
+                1.0,
+            );
+            ne.add(&(sign * SVector::from([-1.0, 0.0])), self.residuals.y, 1.0);
+            ne
+        }
+
+        fn retract(&self, p: &Vector2<f64>, d: &SVector<f64, 2>) -> Vector2<f64> {
+            p + d
+        }
+
+        fn step_norm(&self, d: &SVector<f64, 2>) -> f64 {
+            d.norm()
+        }
+    }
+
+    fn rosenbrock(wrong_sign: bool) -> Rosenbrock {
+        Rosenbrock {
+            wrong_sign,
+            residuals: Vector2::zeros(),
+            at: Vector2::zeros(),
+        }
+    }
+
+    #[test]
+    fn rosenbrock_valley_is_followed_to_its_minimum_with_monotone_costs() {
+        let start = Vector2::new(-1.2, 1.0);
+        let out = levenberg_marquardt(&mut rosenbrock(false), start, &LmConfig::default())
+            .expect("a well-posed problem");
+        assert!(
+            (out.state - Vector2::new(1.0, 1.0)).norm() < 1e-6,
+            "{}",
+            out.state
+        );
+        assert!(
+            out.costs.windows(2).all(|c| c[1] <= c[0]),
+            "{:?}",
+            out.costs
+        );
+        assert_ne!(out.reason, Convergence::MaxIterations);
+    }
+
+    #[test]
+    fn uphill_steps_are_all_rejected_and_the_start_is_kept() {
+        let start = Vector2::new(-1.2, 1.0);
+        let cfg = LmConfig {
+            max_rejections: 5,
+            ..LmConfig::default()
+        };
+        let out = levenberg_marquardt(&mut rosenbrock(true), start, &cfg).expect("solvable");
+        assert_eq!(out.reason, Convergence::NoDecrease);
+        assert_eq!(out.iterations, 5);
+        assert_eq!(out.state, start);
+        assert_eq!(out.costs.len(), 1);
+    }
+
+    #[test]
+    fn too_few_residuals_at_the_start_is_an_error() {
+        let cfg = LmConfig {
+            min_valid: 3,
+            ..LmConfig::default()
+        };
+        let err = levenberg_marquardt(&mut rosenbrock(false), Vector2::zeros(), &cfg).unwrap_err();
+        assert_eq!(
+            err,
+            LmError::TooFewResiduals {
+                rows: 2,
+                required: 3
+            }
+        );
+    }
+}

@@ -1,0 +1,387 @@
+//! Windowed bundle adjustment: keyframe poses and world points refined together on robust
+//! pixel reprojection errors, through the robust crate's Levenberg-Marquardt driver.
+//!
+//! Unknowns: poses `T_i = T_cw` of the keyframes (left increments
+//! `T_i <- exp(delta_i) T_i`, [`crate::lie::retract_left`]) and world points `P_j` (additive).
+//! Residual of observation `o` (keyframe `i`, point `j`, observed pixel `u_o`):
+//! `r_o = pi(T_i P_j) - u_o` in pixels through the full [`Camera`] model; cost
+//! `sum_o s^2 rho(|r_o| / s)` with `rho` a robust loss of `vofront_robust` and `s` its scale in
+//! pixels ([`BundleConfig::sigma_px`]). Each step eliminates the points (Schur complement on
+//! their 3x3 blocks, module `schur`) and solves the dense reduced camera system by Cholesky;
+//! the normal equations are accumulated in parallel (module `problem`).
+//!
+//! **Gauge.** The oldest [`BundleConfig::fixed_poses`] keyframes (the first entries of
+//! [`BundleProblem::poses`]) are held. One fixed keyframe removes the six rigid degrees of
+//! freedom, which is enough when the scale is observable (stereo, RGB-D points). A monocular
+//! window also has a free scale: hold **two** keyframes (the default), whose baseline then
+//! fixes the scale; with one, the scale direction is only held by the damping and drifts.
+//!
+//! **Culling.** After convergence the residual scale is estimated over every observation in
+//! front of its camera, culled ones included (so that the gate does not truncate its own
+//! sample), `sigma = max(min_sigma_px, 1.4826 median(|r_o,x|, |r_o,y|))`, and observations with
+//! `|r_o|^2 > gate_chi2 sigma^2` (5.99: the 95% quantile of chi-square with two degrees of
+//! freedom) are culled, whether or not they took part in the solve; the window is solved
+//! again without them, up to [`BundleConfig::max_rounds`] solves. Observations behind a
+//! camera are culled too. Points left with fewer than two usable observations are not moved.
+//!
+//! ```
+//! use nalgebra::{Isometry3, Point3, Vector2, Vector3};
+//! use vofront_geometry::bundle::{bundle_adjust, BundleConfig, BundleProblem, Observation};
+//! use vofront_geometry::{Camera, Pinhole};
+//! let camera = Camera::pinhole(Pinhole::new(500.0, 500.0, 320.0, 240.0).unwrap());
+//! let poses: Vec<Isometry3<f64>> = (0..3)
+//!     .map(|k| Isometry3::translation(-0.2 * k as f64, 0.0, 0.0))
+//!     .collect();
+//! let points: Vec<Point3<f64>> = (0..40)
+//!     .map(|j| {
+//!         let f = j as f64;
+//!         Point3::new((f * 0.7).sin() * 2.0, (f * 1.3).cos(), 5.0 + (f * 0.37).sin())
+//!     })
+//!     .collect();
+//! let mut observations = Vec::new();
+//! for (i, pose) in poses.iter().enumerate() {
+//!     for (j, p) in points.iter().enumerate() {
+//!         let pixel = camera.project(&(pose * p).coords).unwrap();
+//!         observations.push(Observation { pose: i, point: j, pixel });
+//!     }
+//! }
+//! let truth = poses[2];
+//! let mut problem = BundleProblem { camera, poses, points, observations };
+//! problem.poses[2] = Isometry3::new(Vector3::new(-0.43, 0.02, 0.01), Vector3::new(0.0, 0.01, 0.0));
+//! let report = bundle_adjust(&mut problem, &BundleConfig::default()).unwrap();
+//! assert!((problem.poses[2].translation.vector - truth.translation.vector).norm() < 1e-6);
+//! assert!(report.final_cost < report.initial_cost);
+//! ```
+
+mod problem;
+mod schur;
+
+use nalgebra::{Isometry3, Point3, Vector2};
+use rayon::prelude::*;
+use vofront_robust::{
+    levenberg_marquardt, mad_sigma_about_zero, Convergence, Damping, LmConfig, LmError, Loss,
+};
+
+use crate::camera::Camera;
+use crate::error::GeometryError;
+use problem::{BundleState, Linearized, Reprojection};
+pub use schur::{BundleStep, SchurSystem};
+
+/// One observation: keyframe `pose` saw world point `point` at the (distorted) `pixel`.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Observation {
+    /// Index into [`BundleProblem::poses`].
+    pub pose: usize,
+    /// Index into [`BundleProblem::points`].
+    pub point: usize,
+    /// Observed pixel, `(0, 0)` the centre of the top-left pixel.
+    pub pixel: Vector2<f64>,
+}
+
+/// A window of keyframes and the points they observe; [`bundle_adjust`] refines `poses` and
+/// `points` in place.
+#[derive(Debug, Clone, PartialEq)]
+pub struct BundleProblem {
+    /// The camera of every keyframe.
+    pub camera: Camera,
+    /// `T_cw` of each keyframe (world points into the camera frame), oldest first.
+    pub poses: Vec<Isometry3<f64>>,
+    /// World points, metres.
+    pub points: Vec<Point3<f64>>,
+    /// The observations.
+    pub observations: Vec<Observation>,
+}
+
+/// Settings of [`bundle_adjust`].
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct BundleConfig {
+    /// Robust loss on `|r| / sigma_px`.
+    pub loss: Loss,
+    /// Scale of the loss, pixels (the expected reprojection noise per coordinate).
+    pub sigma_px: f64,
+    /// The oldest this many keyframes are held (the gauge, see the module documentation): 2
+    /// for monocular windows, at least 1.
+    pub fixed_poses: usize,
+    /// Iteration limit of each solve.
+    pub max_iterations: usize,
+    /// A solve stops when an accepted step lowers the cost by less than this fraction.
+    pub min_relative_decrease: f64,
+    /// A solve stops when the whole step (metres and radians) is shorter than this.
+    pub min_step: f64,
+    /// Observations with `|r|^2 > gate_chi2 sigma^2` are culled after convergence.
+    pub gate_chi2: f64,
+    /// Floor of the estimated residual scale, pixels.
+    pub min_sigma_px: f64,
+    /// At most this many (solve, cull) rounds.
+    pub max_rounds: usize,
+}
+
+impl Default for BundleConfig {
+    /// Huber at 1.345 of a 1-pixel scale, two fixed keyframes, 50 iterations, relative
+    /// decrease 1e-8, step 1e-10, chi-square gate 5.99 at an estimated sigma floored at
+    /// 0.05 pixel, three rounds.
+    fn default() -> Self {
+        Self {
+            loss: Loss::Huber(1.345),
+            sigma_px: 1.0,
+            fixed_poses: 2,
+            max_iterations: 50,
+            min_relative_decrease: 1e-8,
+            min_step: 1e-10,
+            gate_chi2: 5.99,
+            min_sigma_px: 0.05,
+            max_rounds: 3,
+        }
+    }
+}
+
+/// What [`bundle_adjust`] did.
+#[derive(Debug, Clone, PartialEq)]
+pub struct BundleReport {
+    /// Iterations over all rounds (accepted and rejected steps).
+    pub iterations: usize,
+    /// Solves run (rounds).
+    pub rounds: usize,
+    /// Robust cost `sum s^2 rho(|r| / s)` at the start of the first solve, pixels^2.
+    pub initial_cost: f64,
+    /// Robust cost at the end of the last solve (over the observations it used), pixels^2.
+    pub final_cost: f64,
+    /// Indices into [`BundleProblem::observations`] of the culled observations (beyond the
+    /// gate, or behind a camera), ascending. Those culled after the last round took part in
+    /// the final solve.
+    pub culled: Vec<usize>,
+    /// Estimated residual scale at the end, pixels per coordinate.
+    pub sigma_px: f64,
+    /// Root mean square of `|r|` over the observations of the last solve, pixels.
+    pub rmse_px: f64,
+    /// Why the last solve stopped.
+    pub reason: Convergence,
+}
+
+/// Checks indices, finiteness and the configuration.
+fn validate(problem: &BundleProblem, cfg: &BundleConfig) -> Result<(), GeometryError> {
+    problem.camera.validate()?;
+    if cfg.fixed_poses == 0 || cfg.fixed_poses > problem.poses.len() {
+        return Err(GeometryError::InvalidConfig(format!(
+            "fixed_poses must be in 1..={} (the gauge needs a fixed keyframe)",
+            problem.poses.len()
+        )));
+    }
+    let positive = |v: f64| v.is_finite() && v > 0.0;
+    if !(positive(cfg.sigma_px) && positive(cfg.gate_chi2) && positive(cfg.min_sigma_px))
+        || cfg.max_rounds == 0
+        || cfg.max_iterations == 0
+    {
+        return Err(GeometryError::InvalidConfig(
+            "sigma_px, gate_chi2, min_sigma_px, max_rounds and max_iterations must be positive"
+                .into(),
+        ));
+    }
+    let (n_poses, n_points) = (problem.poses.len(), problem.points.len());
+    if let Some(o) = problem
+        .observations
+        .iter()
+        .find(|o| o.pose >= n_poses || o.point >= n_points)
+    {
+        return Err(GeometryError::InvalidConfig(format!(
+            "observation of point {} from keyframe {} is out of range ({n_points} points, {n_poses} keyframes)",
+            o.point, o.pose
+        )));
+    }
+    let finite_poses = problem
+        .poses
+        .iter()
+        .all(|t| t.to_homogeneous().iter().all(|v| v.is_finite()));
+    let finite_points = problem
+        .points
+        .iter()
+        .all(|p| p.iter().all(|v| v.is_finite()));
+    let finite_pixels = problem
+        .observations
+        .iter()
+        .all(|o| o.pixel.iter().all(|v| v.is_finite()));
+    if finite_poses && finite_points && finite_pixels {
+        Ok(())
+    } else {
+        Err(GeometryError::NonFinite)
+    }
+}
+
+/// The observations a round uses: not culled, in front of their camera, of points seen at
+/// least twice that way. The others in front of nobody are added to `culled`.
+fn active_set(problem: &BundleProblem, culled: &mut [bool]) -> Vec<usize> {
+    let mut usable: Vec<bool> = problem
+        .observations
+        .iter()
+        .zip(culled.iter_mut())
+        .map(|(o, culled)| {
+            let z = (problem.poses[o.pose] * problem.points[o.point]).z;
+            if z <= 1e-9 {
+                *culled = true;
+            }
+            !*culled
+        })
+        .collect();
+    let mut seen = vec![0usize; problem.points.len()];
+    for (o, _) in problem
+        .observations
+        .iter()
+        .zip(&usable)
+        .filter(|(_, u)| **u)
+    {
+        seen[o.point] += 1;
+    }
+    for (o, u) in problem.observations.iter().zip(usable.iter_mut()) {
+        *u &= seen[o.point] >= 2;
+    }
+    (0..usable.len()).filter(|&k| usable[k]).collect()
+}
+
+/// Refines the poses (all but the `fixed_poses` oldest) and points of `problem` in place; see
+/// the module documentation.
+///
+/// Errors: [`GeometryError::InvalidConfig`] for a bad configuration or an observation index
+/// out of range, [`GeometryError::NonFinite`] for NaN inputs,
+/// [`GeometryError::TooFewCorrespondences`] when no point has two usable observations,
+/// [`GeometryError::Degenerate`] when a free keyframe has fewer than three usable
+/// observations or the reduced camera system is not positive definite.
+pub fn bundle_adjust(
+    problem: &mut BundleProblem,
+    cfg: &BundleConfig,
+) -> Result<BundleReport, GeometryError> {
+    validate(problem, cfg)?;
+    let mut culled = vec![false; problem.observations.len()];
+    let mut report = BundleReport {
+        iterations: 0,
+        rounds: 0,
+        initial_cost: f64::NAN,
+        final_cost: f64::NAN,
+        culled: Vec::new(),
+        sigma_px: cfg.sigma_px,
+        rmse_px: f64::NAN,
+        reason: Convergence::MaxIterations,
+    };
+    while report.rounds < cfg.max_rounds {
+        let active = active_set(problem, &mut culled);
+        let rows = solve_round(problem, cfg, &active, &mut report)?;
+        let sum_sq: f64 = rows.iter().map(|r| r.residual.norm_squared()).sum();
+        report.rmse_px = (sum_sq / rows.len().max(1) as f64).sqrt();
+        // Scale over every observation in front of its camera (culled ones included, so that
+        // gating does not truncate the sample it is estimated from), then the gate.
+        let residuals = reprojection_errors(problem);
+        let coordinates: Vec<f64> = residuals
+            .iter()
+            .flatten()
+            .flat_map(|r| [r.x, r.y])
+            .collect();
+        let sigma = mad_sigma_about_zero(&coordinates)
+            .unwrap_or(cfg.min_sigma_px)
+            .max(cfg.min_sigma_px);
+        report.sigma_px = sigma;
+        let limit = cfg.gate_chi2 * sigma * sigma;
+        // Every observation is gated (those of points too weakly observed to be moved
+        // included); only culls among the solved ones call for another solve.
+        let was_active = {
+            let mut flags = vec![false; culled.len()];
+            active.iter().for_each(|&o| flags[o] = true);
+            flags
+        };
+        let mut new_culls = 0;
+        for (o, r) in residuals.iter().enumerate() {
+            if !culled[o] && !r.is_some_and(|r| r.norm_squared() <= limit) {
+                culled[o] = true;
+                new_culls += usize::from(was_active[o]);
+            }
+        }
+        if new_culls == 0 {
+            break;
+        }
+    }
+    report.culled = (0..culled.len()).filter(|&k| culled[k]).collect();
+    Ok(report)
+}
+
+/// `pi(T_i P_j) - u_o` of every observation, `None` behind the camera.
+fn reprojection_errors(problem: &BundleProblem) -> Vec<Option<Vector2<f64>>> {
+    problem
+        .observations
+        .par_iter()
+        .map(|o| {
+            let x = problem.poses[o.pose] * problem.points[o.point];
+            problem.camera.project(&x.coords).map(|u| u - o.pixel)
+        })
+        .collect()
+}
+
+/// One solve over the observations `active`; writes the state back into `problem`, updates
+/// the counters of `report` and returns the final residual rows.
+fn solve_round(
+    problem: &mut BundleProblem,
+    cfg: &BundleConfig,
+    active: &[usize],
+    report: &mut BundleReport,
+) -> Result<Vec<Linearized>, GeometryError> {
+    if active.is_empty() {
+        return Err(GeometryError::TooFewCorrespondences { got: 0, need: 2 });
+    }
+    let fixed = cfg.fixed_poses;
+    let mut by_point = vec![Vec::new(); problem.points.len()];
+    let mut by_pose = vec![Vec::new(); problem.poses.len() - fixed];
+    for (k, &o) in active.iter().enumerate() {
+        let obs = &problem.observations[o];
+        by_point[obs.point].push(k);
+        if let Some(i) = obs.pose.checked_sub(fixed) {
+            by_pose[i].push(k);
+        }
+    }
+    if let Some(i) = by_pose.iter().position(|list| list.len() < 3) {
+        return Err(GeometryError::Degenerate(format!(
+            "keyframe {} has {} usable observations, at least 3 needed",
+            i + fixed,
+            by_pose[i].len()
+        )));
+    }
+    let mut reprojection = Reprojection {
+        camera: &problem.camera,
+        observations: &problem.observations,
+        active,
+        by_point: &by_point,
+        by_pose: &by_pose,
+        fixed,
+        loss: cfg.loss,
+        scale: cfg.sigma_px,
+        rows: Vec::new(),
+        saved: Vec::new(),
+    };
+    let lm = LmConfig {
+        max_iterations: cfg.max_iterations,
+        min_step: cfg.min_step,
+        min_relative_decrease: cfg.min_relative_decrease,
+        damping: Damping::Diagonal,
+        // Every active observation must stay in front of its camera.
+        min_valid: active.len(),
+        ..LmConfig::default()
+    };
+    let start = BundleState {
+        poses: problem.poses.clone(),
+        points: problem.points.clone(),
+    };
+    let out = levenberg_marquardt(&mut reprojection, start, &lm).map_err(|e| match e {
+        LmError::TooFewResiduals { rows, required } => GeometryError::TooFewCorrespondences {
+            got: rows,
+            need: required,
+        },
+        LmError::Solve(e) => GeometryError::Degenerate(format!("bundle adjustment: {e}")),
+    })?;
+    if report.rounds == 0 {
+        report.initial_cost = out.costs[0];
+    }
+    report.rounds += 1;
+    report.iterations += out.iterations;
+    report.final_cost = out.cost();
+    report.reason = out.reason;
+    let rows = std::mem::take(&mut reprojection.rows);
+    problem.poses = out.state.poses;
+    problem.points = out.state.points;
+    Ok(rows)
+}
