@@ -248,9 +248,12 @@ impl Orb {
         let mut corners = corners.to_vec();
         if pre.is_finite() && (pre.ceil() as usize) < corners.len() {
             let m = pre.ceil() as usize;
-            corners.select_nth_unstable_by(m - 1, |a, b| {
-                b.score.cmp(&a.score).then((a.y, a.x).cmp(&(b.y, b.x)))
-            });
+            // A level whose budget rounds to no candidate keeps none.
+            if let Some(last) = m.checked_sub(1) {
+                corners.select_nth_unstable_by(last, |a, b| {
+                    b.score.cmp(&a.score).then((a.y, a.x).cmp(&(b.y, b.x)))
+                });
+            }
             corners.truncate(m);
             corners.sort_unstable_by_key(|c| (c.y, c.x));
         }
