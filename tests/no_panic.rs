@@ -14,7 +14,9 @@ use vofront::direct::{
     photometric_residual_map, track_klt, KltConfig, Plane, RgbdFrame, Se3Config, TranslationConfig,
     WarpConfig,
 };
-use vofront::features::{match_descriptors, Descriptor, MatchConfig, Orb, OrbConfig};
+use vofront::features::{
+    match_descriptors, match_windowed, Descriptor, Features, MatchConfig, Orb, OrbConfig,
+};
 use vofront::geometry::essential::{decompose_essential, essential_5pt, essential_8pt};
 use vofront::geometry::homography::{decompose_homography, homography_dlt};
 use vofront::geometry::{
@@ -436,6 +438,28 @@ proptest! {
         let img = GrayImage::from_fn(160, 120, |x, y| Luma([((x * 7 + y * 13) % 256) as u8]));
         no_panic("Orb", || Orb::new(cfg.clone()).map(|orb| orb.detect_and_describe(&img)))?;
     }
+}
+
+#[test]
+fn inconsistent_feature_arrays_are_an_error() {
+    let good = Features {
+        xs: vec![10.0],
+        ys: vec![10.0],
+        levels: vec![0],
+        scales: vec![1.0],
+        angles: vec![0.0],
+        responses: vec![1.0],
+        descriptors: vec![Descriptor([1, 0, 0, 0])],
+    };
+    let short = Features {
+        levels: Vec::new(),
+        descriptors: Vec::new(),
+        ..good.clone()
+    };
+    let cfg = MatchConfig::default();
+    assert!(match_windowed(&short, &[(10.0, 10.0)], &good, 5.0, None, &cfg).is_err());
+    assert!(match_windowed(&good, &[(10.0, 10.0)], &short, 5.0, None, &cfg).is_err());
+    assert!(match_windowed(&good, &[(10.0, 10.0)], &good, 5.0, None, &cfg).is_ok());
 }
 
 #[test]

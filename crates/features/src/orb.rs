@@ -95,6 +95,24 @@ impl Features {
         self.xs.len()
     }
 
+    /// [`FeatureError::LengthMismatch`] unless every per-feature array has [`Features::len`]
+    /// entries (the fields are public, so a hand-built set may break this).
+    pub fn check_lengths(&self) -> Result<(), FeatureError> {
+        let n = self.len();
+        let lens = [
+            self.ys.len(),
+            self.levels.len(),
+            self.scales.len(),
+            self.angles.len(),
+            self.responses.len(),
+            self.descriptors.len(),
+        ];
+        match lens.into_iter().find(|&l| l != n) {
+            Some(got) => Err(FeatureError::LengthMismatch { expected: n, got }),
+            None => Ok(()),
+        }
+    }
+
     /// Whether there are no features.
     pub fn is_empty(&self) -> bool {
         self.xs.is_empty()
