@@ -113,9 +113,24 @@ fn two_view_json_matches_the_true_motion() {
     );
     assert!(f["inliers"].as_u64().unwrap() <= f["matches"].as_u64().unwrap());
     assert_eq!(f["model"], "essential");
-    for key in ["detect", "match", "estimate", "total"] {
-        assert!(f["ms"][key].as_f64().unwrap() >= 0.0);
-    }
+    // Timings: present, finite, non-negative, and the three sequential stages fit in the
+    // total (each stage is timed inside the total's span).
+    let ms = |key: &str| {
+        let v = f["ms"][key].as_f64();
+        assert!(
+            v.is_some_and(|v| v.is_finite() && v >= 0.0),
+            "ms.{key} = {:?}",
+            f["ms"][key]
+        );
+        v.unwrap_or_default()
+    };
+    let stages = ms("detect") + ms("match") + ms("estimate");
+    let total = ms("total");
+    assert!(total > 0.0, "total {total} ms");
+    assert!(
+        stages <= total + 1e-6,
+        "stages {stages} ms > total {total} ms"
+    );
 
     let se3 = &json["direct_se3"];
     let rot = rotation_error_deg(&matrix(&se3["R"]), &truth.rotation);

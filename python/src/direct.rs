@@ -58,9 +58,13 @@ pub fn align_translation<'py>(
     out.set_item("iterations_per_level", fit.iterations)?;
     out.set_item("rmse", fit.rmse)?;
     out.set_item("used_fraction", fit.used_fraction)?;
-    let cov = fit.covariance;
-    let cov = [cov[(0, 0)], cov[(0, 1)], cov[(1, 0)], cov[(1, 1)]];
-    out.set_item("covariance", array2(py, 2, 2, cov.to_vec()))?;
+    match fit.covariance {
+        Some(cov) => {
+            let cov = vec![cov[(0, 0)], cov[(0, 1)], cov[(1, 0)], cov[(1, 1)]];
+            out.set_item("covariance", array2(py, 2, 2, cov))?;
+        }
+        None => out.set_item("covariance", py.None())?,
+    }
     out.set_item("a", fit.a)?;
     out.set_item("b", fit.b)?;
     out.set_item("converged", fit.converged)?;
@@ -152,11 +156,15 @@ pub fn align_se3<'py>(
     out.set_item("sigma", fit.sigma)?;
     out.set_item("valid_pixels", fit.valid_pixels)?;
     out.set_item("iterations", fit.iterations.iter().sum::<usize>())?;
-    let cov: Vec<f64> = (0..6)
-        .flat_map(|i| (0..6).map(move |j| (i, j)))
-        .map(|(i, j)| fit.covariance[(i, j)])
-        .collect();
-    out.set_item("covariance", array2(py, 6, 6, cov))?;
+    match &fit.covariance {
+        Some(c) => {
+            let cov: Vec<f64> = (0..6)
+                .flat_map(|i| (0..6).map(move |j| c[(i, j)]))
+                .collect();
+            out.set_item("covariance", array2(py, 6, 6, cov))?;
+        }
+        None => out.set_item("covariance", py.None())?,
+    }
     out.set_item("reason", snake(&format!("{:?}", fit.reason)))?;
     out.set_item("ms", ms)?;
     Ok(out)

@@ -103,7 +103,7 @@ def align_translation(
     """The shift ``d`` (pixels) with ``img2(x + d) = img1(x)``: robust coarse-to-fine alignment.
 
     Keys: ``d`` (2,), ``iterations``, ``iterations_per_level``, ``rmse`` (grey levels),
-    ``used_fraction``, ``covariance`` (2x2 pixels^2), ``a``, ``b``, ``converged``, ``ms``.
+    ``used_fraction``, ``covariance`` (2x2 pixels^2, None when unknown), ``a``, ``b``, ``converged``, ``ms``.
     """
 
 def align_se3(
@@ -120,7 +120,7 @@ def align_se3(
     Model ``cur(pi(K T_21 pi^-1(p, Z))) = a ref(p) + b``; ``prior`` an initial 4x4 ``T_21``.
     Keys: ``T_21`` (4x4, metres), ``R``, ``t``, ``a``, ``b``, ``inlier_ratio``, ``rmse``,
     ``sigma`` (grey levels), ``valid_pixels``, ``iterations``, ``covariance`` (6x6, left
-    increment ``(rho, phi)``, metres and radians), ``reason``, ``ms``.
+    increment ``(rho, phi)``, metres and radians; None when unknown), ``reason``, ``ms``.
     """
 
 def klt(

@@ -83,7 +83,7 @@ pub struct KltTrack {
 /// let mut img = Plane::filled(40, 40, 0.0);
 /// for y in 10..30 {
 ///     for x in 10..30 {
-///         img.data[y * 40 + x] = 200.0;
+///         img.data_mut()[y * 40 + x] = 200.0;
 ///     }
 /// }
 /// let corners = good_features_to_track(&img, 10, 0.1, 5.0);

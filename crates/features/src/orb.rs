@@ -95,6 +95,24 @@ impl Features {
         self.xs.len()
     }
 
+    /// [`FeatureError::LengthMismatch`] unless every per-feature array has [`Features::len`]
+    /// entries (the fields are public, so a hand-built set may break this).
+    pub fn check_lengths(&self) -> Result<(), FeatureError> {
+        let n = self.len();
+        let lens = [
+            self.ys.len(),
+            self.levels.len(),
+            self.scales.len(),
+            self.angles.len(),
+            self.responses.len(),
+            self.descriptors.len(),
+        ];
+        match lens.into_iter().find(|&l| l != n) {
+            Some(got) => Err(FeatureError::LengthMismatch { expected: n, got }),
+            None => Ok(()),
+        }
+    }
+
     /// Whether there are no features.
     pub fn is_empty(&self) -> bool {
         self.xs.is_empty()
@@ -248,9 +266,12 @@ impl Orb {
         let mut corners = corners.to_vec();
         if pre.is_finite() && (pre.ceil() as usize) < corners.len() {
             let m = pre.ceil() as usize;
-            corners.select_nth_unstable_by(m - 1, |a, b| {
-                b.score.cmp(&a.score).then((a.y, a.x).cmp(&(b.y, b.x)))
-            });
+            // A level whose budget rounds to no candidate keeps none.
+            if let Some(last) = m.checked_sub(1) {
+                corners.select_nth_unstable_by(last, |a, b| {
+                    b.score.cmp(&a.score).then((a.y, a.x).cmp(&(b.y, b.x)))
+                });
+            }
             corners.truncate(m);
             corners.sort_unstable_by_key(|c| (c.y, c.x));
         }

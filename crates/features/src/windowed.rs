@@ -136,6 +136,8 @@ pub fn match_windowed(
     level_tolerance: Option<u8>,
     cfg: &MatchConfig,
 ) -> Result<Vec<Match>, FeatureError> {
+    query.check_lengths()?;
+    train.check_lengths()?;
     if predicted.len() != query.len() {
         return Err(FeatureError::LengthMismatch {
             expected: query.len(),

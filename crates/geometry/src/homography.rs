@@ -97,24 +97,47 @@ pub fn transfer_errors_sq(
     (fwd, bwd)
 }
 
-/// Relative tolerance under which two singular values of `H` count as equal.
+/// Relative tolerance under which all three singular values of `H` count as equal (a
+/// rotation: the translation is below `1e-5` of the plane distance).
 const EQUAL_SINGULAR: f64 = 1e-5;
+
+/// Relative gap `d_i / d_j - 1` under which two singular values are taken as exactly equal.
+/// The general formulas stay exact as the gap closes (their error grows like
+/// `eps / sqrt(gap)`), but each pair of twin solutions, which differ by about `sqrt(gap)` rad,
+/// becomes one; at this gap the merged twins are `1e-6` rad apart.
+const TWIN_MERGE: f64 = 1e-12;
 
 /// Outcome of [`decompose_homography`].
 #[derive(Debug, Clone, PartialEq)]
 pub enum HomographyDecomposition {
-    /// Up to eight `(R, t, n)` with `H ~ R + t n^T` (unit `t`, unit `n` towards the camera
-    /// `n_z > 0`); the chirality test chooses among them.
+    /// Up to eight `(R, t, n)`, unit `t` and unit plane normal `n`, with `H ~ R + t n^T` up
+    /// to the sign of `n`, which is returned towards the camera (`n_z > 0`); the chirality test
+    /// chooses among them. Four when two singular values are equal (see
+    /// [`decompose_homography`]).
     Motion(Vec<(nalgebra::Rotation3<f64>, Vector3<f64>, Vector3<f64>)>),
     /// All three singular values are equal: `H` is a rotation (no translation or a plane at
     /// infinity), `R` the nearest rotation.
     Rotation(nalgebra::Rotation3<f64>),
-    /// Two equal singular values other than the pure-rotation case, or a failed SVD.
+    /// `H` is singular or not finite, or its SVD failed.
     Degenerate,
 }
 
-/// Decomposes a homography between normalized coordinates (Faugeras' SVD method): with
-/// `H = U diag(d1, d2, d3) V^T`, `s = det U det V`, the candidate motions for `d' = +-d2`.
+/// Decomposes a homography between normalized coordinates (Faugeras' SVD method).
+///
+/// With `H = U diag(d1, d2, d3) V^T`, `s = det U det V` and, for `e1, e3 = +-1`,
+/// `x1 = e1 sqrt((d1^2 - d2^2) / (d1^2 - d3^2))`, `x3 = e3 sqrt((d2^2 - d3^2) / (d1^2 - d3^2))`:
+///
+/// - `d' = d2`: `R' = [[c, 0, -s'], [0, 1, 0], [s', 0, c]]` with `s' = (d1 - d3) x1 x3 / d2`,
+///   `c = (d1 x3^2 + d3 x1^2) / d2`, `t' = (d1 - d3) (x1, 0, -x3)`;
+/// - `d' = -d2`: `R' = [[c, 0, s'], [0, -1, 0], [s', 0, -c]]` with `s' = (d1 + d3) x1 x3 / d2`,
+///   `c = (d3 x1^2 - d1 x3^2) / d2`, `t' = (d1 + d3) (x1, 0, x3)`;
+///
+/// and `n' = (x1, 0, x3)`, `R = s U R' V^T`, `t ~ U t'`, `n = V n'`.
+///
+/// Two equal singular values mean a translation along the plane normal (`R^T t || n`, a
+/// camera moving straight at a wall). Then `x1 = 0` (`d1 = d2`) or `x3 = 0` (`d2 = d3`) in
+/// closed form: the only singular vectors used are those of the distinct singular value, which
+/// are well defined, and each twin pair `+-x1` (or `+-x3`) is one solution, so four remain.
 ///
 /// ```
 /// use nalgebra::{Rotation3, Vector3};
@@ -142,23 +165,36 @@ pub fn decompose_homography(h: &Matrix3<f64>) -> HomographyDecomposition {
         svd.singular_values[1],
         svd.singular_values[2],
     );
-    if !(d1 >= d2 && d2 >= d3 && d3 > 0.0) {
+    // Equal singular values may come out one rounding error out of order.
+    let ordered = d2 <= d1 * (1.0 + TWIN_MERGE) && d3 <= d2 * (1.0 + TWIN_MERGE);
+    if !(ordered && d3 > 0.0 && d1.is_finite()) {
         return HomographyDecomposition::Degenerate;
     }
     let s = u.determinant() * v_t.determinant();
-    let v = v_t.transpose();
     if d1 / d3 < 1.0 + EQUAL_SINGULAR {
         return HomographyDecomposition::Rotation(Rotation3::from_matrix(&(u * v_t * s)));
     }
-    if d1 / d2 < 1.0 + EQUAL_SINGULAR || d2 / d3 < 1.0 + EQUAL_SINGULAR {
-        return HomographyDecomposition::Degenerate;
-    }
     let (s1, s2, s3) = (d1 * d1, d2 * d2, d3 * d3);
-    let aux1 = ((s1 - s2) / (s1 - s3)).sqrt();
-    let aux3 = ((s2 - s3) / (s1 - s3)).sqrt();
-    let x1 = [aux1, aux1, -aux1, -aux1];
-    let x3 = [aux3, -aux3, aux3, -aux3];
-    let mut out = Vec::with_capacity(8);
+    let a1 = if d1 / d2 - 1.0 <= TWIN_MERGE {
+        0.0
+    } else {
+        ((s1 - s2) / (s1 - s3)).sqrt()
+    };
+    let a3 = if d2 / d3 - 1.0 <= TWIN_MERGE {
+        0.0
+    } else {
+        ((s2 - s3) / (s1 - s3)).sqrt()
+    };
+    // With a1 = 0 or a3 = 0 the twins `+-x1` (or `+-x3`) coincide.
+    let signs = if a1 == 0.0 {
+        vec![(0.0, a3), (0.0, -a3)]
+    } else if a3 == 0.0 {
+        vec![(a1, 0.0), (-a1, 0.0)]
+    } else {
+        vec![(a1, a3), (a1, -a3), (-a1, a3), (-a1, -a3)]
+    };
+    let v = v_t.transpose();
+    let mut out = Vec::with_capacity(2 * signs.len());
     let mut push = |rp: Matrix3<f64>, tp: Vector3<f64>, np: Vector3<f64>| {
         let r = u * rp * v_t * s;
         let t = u * tp;
@@ -171,29 +207,16 @@ pub fn decompose_homography(h: &Matrix3<f64>) -> HomographyDecomposition {
             out.push((Rotation3::from_matrix(&r), t / tn, n.normalize()));
         }
     };
-    // d' = d2.
-    let st = ((s1 - s2) * (s2 - s3)).sqrt() / ((d1 + d3) * d2);
-    let ct = (s2 + d1 * d3) / ((d1 + d3) * d2);
-    for (i, sign) in [1.0, -1.0, -1.0, 1.0].into_iter().enumerate() {
-        let sth = st * sign;
-        let rp = Matrix3::new(ct, 0.0, -sth, 0.0, 1.0, 0.0, sth, 0.0, ct);
-        push(
-            rp,
-            Vector3::new(x1[i], 0.0, -x3[i]) * (d1 - d3),
-            Vector3::new(x1[i], 0.0, x3[i]),
-        );
-    }
-    // d' = -d2.
-    let sp = ((s1 - s2) * (s2 - s3)).sqrt() / ((d1 - d3) * d2);
-    let cp = (d1 * d3 - s2) / ((d1 - d3) * d2);
-    for (i, sign) in [1.0, -1.0, -1.0, 1.0].into_iter().enumerate() {
-        let sph = sp * sign;
-        let rp = Matrix3::new(cp, 0.0, sph, 0.0, -1.0, 0.0, sph, 0.0, -cp);
-        push(
-            rp,
-            Vector3::new(x1[i], 0.0, x3[i]) * (d1 + d3),
-            Vector3::new(x1[i], 0.0, x3[i]),
-        );
+    for &(x1, x3) in &signs {
+        let np = Vector3::new(x1, 0.0, x3);
+        // d' = d2.
+        let (st, ct) = ((d1 - d3) * x1 * x3 / d2, (d1 * x3 * x3 + d3 * x1 * x1) / d2);
+        let rp = Matrix3::new(ct, 0.0, -st, 0.0, 1.0, 0.0, st, 0.0, ct);
+        push(rp, Vector3::new(x1, 0.0, -x3) * (d1 - d3), np);
+        // d' = -d2.
+        let (sp, cp) = ((d1 + d3) * x1 * x3 / d2, (d3 * x1 * x1 - d1 * x3 * x3) / d2);
+        let rp = Matrix3::new(cp, 0.0, sp, 0.0, -1.0, 0.0, sp, 0.0, -cp);
+        push(rp, Vector3::new(x1, 0.0, x3) * (d1 + d3), np);
     }
     HomographyDecomposition::Motion(out)
 }
