@@ -253,6 +253,7 @@ mod tests {
             root: "x".into(),
             frames: Vec::new(),
             camera: None,
+            camera_source: None,
             depth_scale: None,
             ground_truth: Some(Trajectory::new(vec![(5.0, t_wb)])),
             ground_truth_tolerance: 0.02,
