@@ -295,3 +295,42 @@ fn zero_frames_report_that_nothing_was_tracked() {
     assert_eq!(json["frames"], 0);
     assert!(json["fps"].is_null() && json["ate"].is_null(), "{json}");
 }
+
+#[test]
+fn a_plain_image_folder_is_timed_by_fps_and_the_bad_rate_is_refused() {
+    let dir = out_dir("images");
+    let images = dir.join("frames");
+    std::fs::create_dir_all(&images).unwrap();
+    let mut rgb: Vec<PathBuf> = std::fs::read_dir(sequence().join("seq/rgb"))
+        .unwrap()
+        .map(|e| e.unwrap().path())
+        .collect();
+    rgb.sort();
+    for (i, path) in rgb.iter().take(4).enumerate() {
+        std::fs::copy(path, images.join(format!("{i:06}.png"))).unwrap();
+    }
+    let out = run(
+        &["odometry", "frames", "--method", "mono", "--fps", "20"],
+        &dir,
+    );
+    // Four frames may be too few for monocular initialisation (exit 3); the timing is the point.
+    assert!(
+        matches!(out.status.code(), Some(0 | 3)),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let metrics = std::fs::read_to_string(dir.join("vofront-out/frames.csv")).unwrap();
+    let stamps: Vec<f64> = metrics
+        .lines()
+        .skip(1)
+        .map(|l| l.split(',').nth(1).unwrap().parse().unwrap())
+        .collect();
+    assert_eq!(stamps, vec![0.0, 0.05, 0.1, 0.15]);
+
+    let out = run(
+        &["odometry", "frames", "--method", "mono", "--fps", "-5"],
+        &dir,
+    );
+    assert_eq!(out.status.code(), Some(1));
+    assert!(String::from_utf8_lossy(&out.stderr).contains("--fps"));
+}

@@ -300,19 +300,24 @@ finished, the summary printed, and the exit code is 130/143 (a second signal exi
 Exit codes: 0 done, 1 failed, 2 bad command line, 3 tracking lost for good, 130/143 interrupted."
 )]
 pub struct OdometryArgs {
-    /// Dataset folder: TUM RGB-D (rgb.txt), KITTI odometry (image_0/, times.txt) or EuRoC (mav0/).
+    /// Dataset folder: TUM RGB-D (rgb.txt), KITTI odometry (image_0/, times.txt), EuRoC (mav0/)
+    /// or a plain folder of images (timed by `--fps` or by timestamp file names).
     pub dataset: PathBuf,
     /// Tracker (`feature` is an alias of `mono`).
     #[arg(long, value_enum, default_value_t = OdometryMethod::Direct)]
     pub method: OdometryMethod,
-    /// Camera; without flags: the dataset's calibration, else a TUM preset from the folder
-    /// name, else tum-ros.
+    /// Camera; without flags: the camera the dataset names (KITTI calib.txt, EuRoC
+    /// sensor.yaml, a TUM folder name or list header), else tum-ros.
     #[command(flatten)]
     pub camera: CameraArgs,
     /// Depth units per metre, overriding the dataset's (TUM: 5000); 8-bit and 16-bit depth
     /// PNGs are both divided by it as stored.
-    #[arg(long, value_name = "UNITS")]
+    #[arg(long, value_name = "UNITS", allow_negative_numbers = true)]
     pub depth_scale: Option<f64>,
+    /// Frame rate (Hz) of a plain folder of images: frame `i` at `i / fps` s [default: times
+    /// from the file names].
+    #[arg(long, value_name = "HZ", allow_negative_numbers = true)]
+    pub fps: Option<f64>,
     /// ORB feature budget per frame of the feature trackers [default: the tracker's, 1000
     /// for feature-rgbd].
     #[arg(long, value_name = "N")]

@@ -15,7 +15,7 @@ use std::sync::Arc;
 
 use indicatif::{ProgressBar, ProgressStyle};
 use serde_json::{json, Value};
-use vofront::dataset::{tum::tum_preset_for, Dataset};
+use vofront::dataset::{Dataset, DatasetConfig};
 use vofront::eval::{ate, plot::write_plot, rpe, Alignment, AteResult, EvalConfig, RpeResult};
 use vofront::geometry::Camera;
 use vofront::odometry::direct::{DirectTracker, DirectTrackerConfig};
@@ -36,19 +36,21 @@ pub const EXIT_SIGINT: u8 = 130;
 /// Exit code after SIGTERM (128 + 15).
 pub const EXIT_SIGTERM: u8 = 143;
 
-/// The camera and where it came from: explicit flags first, then the dataset's calibration,
-/// then a TUM preset recognised from the folder name, then the ROS default (`tum-ros`).
-fn choose_camera(args: &OdometryArgs, dataset: &Dataset) -> Result<(Camera, &'static str), String> {
+/// The camera and where it came from: explicit flags first, then the camera the dataset names
+/// ([`Dataset::camera`]: KITTI `calib.txt`, EuRoC `sensor.yaml`, a TUM folder name or list
+/// header), then the ROS default (`tum-ros`).
+fn choose_camera(args: &OdometryArgs, dataset: &Dataset) -> Result<(Camera, String), String> {
     if args.camera.is_given() {
-        return Ok((args.camera.camera()?, "command-line flags"));
+        return Ok((args.camera.camera()?, "command-line flags".into()));
     }
     if let Some(camera) = dataset.camera {
-        return Ok((camera, "dataset calibration"));
+        let source = dataset
+            .camera_source
+            .as_ref()
+            .map_or_else(|| "dataset calibration".into(), |s| s.to_string());
+        return Ok((camera, source));
     }
-    if let Some(camera) = tum_preset_for(&dataset.root) {
-        return Ok((camera, "TUM preset from the folder name"));
-    }
-    Ok((args.camera.camera()?, "default: tum-ros"))
+    Ok((args.camera.camera()?, "default: tum-ros".into()))
 }
 
 /// One line describing `camera`.
@@ -284,7 +286,16 @@ fn install_signal_handlers() -> Result<(Arc<AtomicBool>, Arc<AtomicUsize>), Stri
 /// Runs `vofront odometry`; the exit code: 0, [`EXIT_LOST`], [`EXIT_SIGINT`] or
 /// [`EXIT_SIGTERM`].
 pub fn run(args: &OdometryArgs) -> Result<u8, String> {
-    let mut dataset = Dataset::open(&args.dataset).map_err(|e| e.to_string())?;
+    if let Some(fps) = args.fps {
+        if !(fps.is_finite() && fps > 0.0) {
+            return Err(format!("--fps {fps}: must be a positive number"));
+        }
+    }
+    let config = DatasetConfig {
+        fps: args.fps,
+        ..DatasetConfig::default()
+    };
+    let mut dataset = Dataset::open_with(&args.dataset, &config).map_err(|e| e.to_string())?;
     if let Some(scale) = args.depth_scale {
         if !(scale.is_finite() && scale > 0.0) {
             return Err(format!("--depth-scale {scale}: must be a positive number"));
@@ -332,7 +343,7 @@ pub fn run(args: &OdometryArgs) -> Result<u8, String> {
     }
     let out = out.map_err(|e| e.to_string())?;
     if args.json {
-        outln!("{}", report_json(args, &dataset, (&camera, source), &out)?);
+        outln!("{}", report_json(args, &dataset, (&camera, &source), &out)?);
     } else {
         report(
             &dataset,
