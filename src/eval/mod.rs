@@ -113,6 +113,21 @@ impl Default for EvalConfig {
     }
 }
 
+impl EvalConfig {
+    /// The settings for [`rpe`] that go with these ATE settings: RPE is invariant to a rigid
+    /// alignment, so only a similarity (which rescales its translation part) is kept.
+    pub fn for_rpe(self) -> Self {
+        Self {
+            alignment: if self.alignment == Alignment::Sim3 {
+                Alignment::Sim3
+            } else {
+                Alignment::None
+            },
+            ..self
+        }
+    }
+}
+
 /// Summary statistics of a list of errors, as evo prints them (serialised with evo's key names).
 #[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
 pub struct Stats {

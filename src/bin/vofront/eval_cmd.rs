@@ -55,15 +55,7 @@ pub fn run(args: &EvalArgs) -> Result<(), String> {
         alignment,
     };
     let ate = ate(&gt, &est, &cfg).map_err(|e| format!("ATE: {e}"))?;
-    // RPE is invariant to a rigid alignment; a similarity rescales its translation part.
-    let rpe_cfg = EvalConfig {
-        alignment: if alignment == Alignment::Sim3 {
-            Alignment::Sim3
-        } else {
-            Alignment::None
-        },
-        ..cfg
-    };
+    let rpe_cfg = cfg.for_rpe();
     let pairs = RpeConfig {
         delta: args.delta,
         unit: unit(args.delta_unit),

@@ -136,15 +136,7 @@ fn evaluate(
         alignment,
         max_dt: dataset.ground_truth_tolerance,
     };
-    // RPE is invariant to a rigid alignment; a similarity rescales its translation part.
-    let rpe_cfg = EvalConfig {
-        alignment: if alignment == Alignment::Sim3 {
-            Alignment::Sim3
-        } else {
-            Alignment::None
-        },
-        ..cfg
-    };
+    let rpe_cfg = cfg.for_rpe();
     Some((
         ate(&gt, &out.trajectory, &cfg).map_err(|e| e.to_string()),
         rpe(&gt, &out.trajectory, &rpe_cfg).map_err(|e| e.to_string()),
