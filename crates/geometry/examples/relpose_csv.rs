@@ -95,7 +95,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         m[(0, 0)], m[(0, 1)], m[(0, 2)], m[(1, 0)], m[(1, 1)], m[(1, 2)], m[(2, 0)], m[(2, 1)], m[(2, 2)],
         rel.translation.x, rel.translation.y, rel.translation.z, rel.model, rel.inlier_count,
         rel.triangulated, rel.parallax_deg, rel.low_parallax, rel.homography_score_ratio,
-        rel.iterations.0, rel.iterations.1, times[times.len() / 2], x1.len(), rel.ambiguous,
+        rel.iterations.essential, rel.iterations.homography, times[times.len() / 2], x1.len(), rel.ambiguous,
         alt.0, alt.1
     );
     Ok(())

@@ -5,6 +5,8 @@
 //! - [`essential`]: five-point and eight-point solvers, Sampson error, pose recovery;
 //! - [`homography`]: four-point DLT and decomposition into `(R, t, n)`;
 //! - [`ransac`]: LO-MSAC driver generic over an [`ransac::Estimator`];
+//! - [`residual`]: Sampson, symmetric transfer and reprojection errors, one answer for a
+//!   degenerate denominator (infinite: an outlier);
 //! - [`relative_pose`]: the full two-view pipeline [`estimate_relative_pose`];
 //! - [`triangulate`]: DLT and midpoint triangulation;
 //! - [`pnp`]: P3P in RANSAC with robust motion-only refinement, [`solve_pnp_ransac`];
@@ -48,6 +50,7 @@ pub mod p3p;
 pub mod pnp;
 pub mod ransac;
 pub mod relative_pose;
+pub mod residual;
 pub mod triangulate;
 pub mod undistort_map;
 

@@ -138,11 +138,7 @@ impl Estimator for PnpEstimator<'_> {
     }
 
     fn residual_sq(&self, t: &Isometry3<f64>, i: usize) -> f64 {
-        let x = t * self.world[i];
-        if x.z <= 1e-9 {
-            return f64::INFINITY;
-        }
-        (Vector2::new(x.x / x.z, x.y / x.z) - self.normalized[i]).norm_squared()
+        crate::residual::reprojection_sq(&(t * self.world[i]).coords, &self.normalized[i])
     }
 }
 
@@ -176,12 +172,12 @@ impl Problem<6> for Reprojection<'_> {
 }
 
 /// Pixel `u = K D(x / z, y / z)` of the camera-frame point `x` (distortion `D` included) and
-/// its Jacobian `du/dx` (2 x 3, pixels per metre); `None` when `z <= 1e-9` (behind the camera).
+/// its Jacobian `du/dx` (2 x 3, pixels per metre); `None` when `z <= MIN_DEPTH` (behind the camera).
 pub(crate) fn project_with_jacobian(
     camera: &Camera,
     x: &Vector3<f64>,
 ) -> Option<(Vector2<f64>, Matrix2x3<f64>)> {
-    if x.z <= 1e-9 {
+    if x.z <= crate::residual::MIN_DEPTH {
         return None;
     }
     let k = &camera.pinhole;
