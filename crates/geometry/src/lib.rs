@@ -35,8 +35,8 @@
 //!     x2.push(pixel(t_21 * p));
 //! }
 //! let fit = estimate_relative_pose(&x1, &x2, &camera, &RelativePoseConfig::default()).unwrap();
-//! assert!(fit.rotation.angle_to(&t_21.rotation) < 1e-6);
-//! assert!((fit.translation - t_21.translation.vector.normalize()).norm() < 1e-6);
+//! assert!(fit.rotation().angle_to(&t_21.rotation) < 1e-6);
+//! assert!((fit.translation() - t_21.translation.vector.normalize()).norm() < 1e-6);
 //! ```
 #![warn(missing_docs)]
 
@@ -58,6 +58,7 @@ pub use bundle::{bundle_adjust, BundleConfig, BundleProblem, BundleReport, Obser
 pub use camera::{Camera, CameraError, Distortion, Pinhole};
 pub use error::GeometryError;
 pub use pnp::{solve_pnp_ransac, PnpConfig, PnpResult};
+pub use ransac::RansacConfig;
 pub use relative_pose::{estimate_relative_pose, Model, RelativePose, RelativePoseConfig};
 pub use triangulate::{triangulate_dlt, triangulate_midpoint};
 pub use undistort_map::UndistortMap;

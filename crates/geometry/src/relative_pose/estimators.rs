@@ -14,7 +14,7 @@ use crate::residual::{row_major, symmetric_transfer_sq, Epipolar};
 use vofront_robust::Loss;
 
 /// Essential matrix hypotheses from the five-point solver, scored by the Sampson error
-/// (normalized units; the threshold is `threshold_px / f`). The second field is the noise
+/// (normalized units; the threshold is `ransac.threshold / f`). The second field is the noise
 /// scale (normalized units) of the local optimisation, which refits on the inliers by the
 /// eight-point algorithm followed by Huber IRLS on the Sampson distance.
 pub struct EssentialEstimator<'a>(pub &'a Correspondences, pub f64);

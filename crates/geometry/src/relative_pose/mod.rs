@@ -3,10 +3,10 @@
 //! Pipeline of [`estimate_relative_pose`], one module per step:
 //! 1. `prepare`: validation and undistortion of the pixels into normalized coordinates `x_n`;
 //! 2. `select`, model selection: LO-MSAC of the essential matrix (five-point samples, Sampson error, threshold
-//!    `threshold_px / f` with `f = (fx + fy) / 2`) and of a homography (four-point DLT,
+//!    `ransac.threshold / f` with `f = (fx + fy) / 2`) and of a homography (four-point DLT,
 //!    symmetric transfer error), the latter with the iteration budget that would find it if it
 //!    explained as many correspondences as the essential matrix;
-//!    then the choice as in ORB-SLAM's initialiser: with `sigma = threshold_px`,
+//!    then the choice as in ORB-SLAM's initialiser: with `sigma = ransac.threshold`,
 //!    `S_H = sum_i sum_{images} max(0, 5.99 - d^2 / sigma^2)` over transfer errors and
 //!    `S_E = sum_i sum_{images} [d^2 / sigma^2 < 3.84] (5.99 - d^2 / sigma^2)` over distances to
 //!    the epipolar lines; the homography is used when `S_H / (S_H + S_E) > homography_ratio`;
@@ -82,8 +82,8 @@ use types::isometry;
 ///     x2.push(cam.project(&(t21 * p).coords).unwrap());
 /// }
 /// let rel = estimate_relative_pose(&x1, &x2, &cam, &RelativePoseConfig::default()).unwrap();
-/// assert!(rel.rotation.angle_to(&t21.rotation) < 1e-6);
-/// assert!((rel.translation - t21.translation.vector.normalize()).norm() < 1e-6);
+/// assert!(rel.rotation().angle_to(&t21.rotation) < 1e-6);
+/// assert!((rel.translation() - t21.translation.vector.normalize()).norm() < 1e-6);
 /// ```
 pub fn estimate_relative_pose(
     x1: &[Vector2<f64>],
@@ -169,13 +169,9 @@ fn general_pose(
     let inliers = tv.input_mask(&used);
     let pose = isometry(&state.0, &state.1);
     Ok(RelativePose {
-        rotation: pose.rotation,
-        translation: state.1,
         pose,
         model: chosen.model,
-        inlier_count: inliers.iter().filter(|&&b| b).count(),
         inliers,
-        triangulated: final_rec.good,
         points,
         parallax_deg: final_rec.median_parallax_deg,
         low_parallax,

@@ -27,9 +27,9 @@ pub(super) struct TwoView<'a> {
     pub n_in: usize,
     /// Mean focal length `f = (fx + fy) / 2`, pixels.
     pub focal: f64,
-    /// Sampson inlier threshold, normalized units (`threshold_px / f`).
+    /// Sampson inlier threshold, normalized units (`ransac.threshold / f`).
     pub threshold: f64,
-    /// Assumed noise scale of the Sampson distance, pixels (`threshold_px / 2`).
+    /// Assumed noise scale of the Sampson distance, pixels (`ransac.threshold / 2`).
     pub sigma_px: f64,
     /// The settings.
     pub cfg: &'a RelativePoseConfig,
@@ -45,11 +45,7 @@ impl<'a> TwoView<'a> {
         cfg: &'a RelativePoseConfig,
     ) -> Result<Self, GeometryError> {
         camera.validate()?;
-        if !(cfg.threshold_px > 0.0 && cfg.confidence > 0.0 && cfg.confidence < 1.0) {
-            return Err(GeometryError::InvalidConfig(
-                "threshold_px must be > 0 and confidence in (0, 1)".into(),
-            ));
-        }
+        cfg.ransac.validate()?;
         if x1.len() != x2.len() {
             return Err(GeometryError::LengthMismatch(x1.len(), x2.len()));
         }
@@ -88,8 +84,8 @@ impl<'a> TwoView<'a> {
             index,
             n_in: x1.len(),
             focal,
-            threshold: cfg.threshold_px / focal,
-            sigma_px: 0.5 * cfg.threshold_px,
+            threshold: cfg.ransac.threshold / focal,
+            sigma_px: 0.5 * cfg.ransac.threshold,
             cfg,
         })
     }

@@ -84,14 +84,10 @@ pub(super) fn rotation_only_pose(
     let flags = [Reason::PureRotation, Reason::LowParallax];
     let pose = isometry(&rotation, &Vector3::zeros());
     Ok(RelativePose {
-        rotation: pose.rotation,
-        translation: Vector3::zeros(),
         pose,
         model,
-        inlier_count: inl.len(),
         inliers: tv.input_mask(&inl),
         points: vec![None; tv.n_in],
-        triangulated: 0,
         parallax_deg,
         low_parallax: true,
         pure_rotation: true,

@@ -64,22 +64,22 @@ impl Selection {
 /// Fits both models and scores them.
 pub(super) fn select_model(tv: &TwoView) -> Selection {
     let (data, cfg) = (&tv.data, tv.cfg);
-    let rcfg = RansacConfig {
-        threshold: tv.threshold,
-        confidence: cfg.confidence,
-        max_iterations: cfg.max_iterations,
-        seed: cfg.seed,
-        ..RansacConfig::default()
-    };
+    let rcfg = cfg.ransac.in_normalized_units(tv.focal);
     let essential = ransac(&EssentialEstimator(data, 0.5 * tv.threshold), &rcfg);
     // The homography only matters if it can compete with the essential matrix: it gets the
     // iterations that find an all-inlier 4-sample when its inlier ratio equals the essential's.
-    let h_iterations = essential.as_ref().map_or(cfg.max_iterations, |e| {
-        required_iterations(cfg.confidence, e.inlier_count as f64 / data.len() as f64, 4)
+    let h_iterations = essential.as_ref().map_or(cfg.ransac.max_iterations, |e| {
+        required_iterations(
+            rcfg.confidence,
+            e.inlier_count as f64 / data.len() as f64,
+            4,
+        )
     });
     let hcfg = RansacConfig {
         threshold: tv.transfer_threshold(),
-        max_iterations: h_iterations.max(H_MIN_ITERATIONS).min(cfg.max_iterations),
+        max_iterations: h_iterations
+            .max(H_MIN_ITERATIONS)
+            .min(cfg.ransac.max_iterations),
         ..rcfg
     };
     let homography = ransac(&HomographyEstimator(data), &hcfg);

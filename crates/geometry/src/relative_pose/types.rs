@@ -3,17 +3,16 @@
 use nalgebra::{Isometry3, Point3, Rotation3, Translation3, UnitQuaternion, Vector3};
 use vofront_robust::{Quality, QualityConfig};
 
+use crate::ransac::RansacConfig;
+
 /// Settings of [`super::estimate_relative_pose`].
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct RelativePoseConfig {
-    /// Inlier threshold on the Sampson / transfer distance, pixels.
-    pub threshold_px: f64,
-    /// RANSAC confidence.
-    pub confidence: f64,
-    /// RANSAC iteration cap (each of the two models).
-    pub max_iterations: usize,
-    /// Sampler seed (results are reproducible for a given seed).
-    pub seed: u64,
+    /// RANSAC settings of both models; `ransac.threshold` is the inlier threshold on the
+    /// Sampson distance in pixels (the homography's transfer threshold is derived from it),
+    /// `ransac.max_iterations` caps each model, and results are reproducible for a given
+    /// `ransac.seed`.
+    pub ransac: RansacConfig,
     /// Nonlinear refinement of `(R, t)` on the inliers.
     pub refine: bool,
     /// Median parallax (degrees) below which `low_parallax` flags the translation direction as
@@ -30,10 +29,7 @@ pub struct RelativePoseConfig {
 impl Default for RelativePoseConfig {
     fn default() -> Self {
         Self {
-            threshold_px: 1.0,
-            confidence: 0.999,
-            max_iterations: 10_000,
-            seed: 0,
+            ransac: RansacConfig::default(),
             refine: true,
             min_parallax_deg: 1.0,
             homography_ratio: 0.45,
@@ -52,27 +48,21 @@ pub enum Model {
     Homography,
 }
 
-/// Relative pose `T_21` between two views.
+/// Relative pose `T_21` between two views: the pose, the model it comes from, the inlier set
+/// with its triangulated points, the flags and the quality record (each stored once; the
+/// rotation, translation and counts are accessors).
 #[derive(Debug, Clone, PartialEq)]
 pub struct RelativePose {
-    /// `R_21`.
-    pub rotation: UnitQuaternion<f64>,
-    /// Unit translation direction `t_21`, zero for a pure rotation.
-    pub translation: Vector3<f64>,
-    /// `T_21 = (R_21, t_21)`.
+    /// `T_21 = (R_21, t_21)`, unit translation direction `t_21` (zero for a pure rotation).
     pub pose: Isometry3<f64>,
     /// Model used.
     pub model: Model,
     /// Per input correspondence: consistent with the final pose (Sampson distance under the
     /// threshold; for a pure rotation, transfer error under the threshold).
     pub inliers: Vec<bool>,
-    /// Number of `true` in `inliers`.
-    pub inlier_count: usize,
     /// Per input correspondence: the triangulated point in camera 1, in baseline units, for
     /// inliers in front of both cameras and closer than the far limit.
     pub points: Vec<Option<Point3<f64>>>,
-    /// Number of `Some` in `points`.
-    pub triangulated: usize,
     /// Median parallax angle of the triangulated points, degrees.
     pub parallax_deg: f64,
     /// Median parallax under `min_parallax_deg` (or a pure rotation): the translation direction
@@ -94,6 +84,28 @@ pub struct RelativePose {
     /// the RANSAC total and `converged` is always true (the refit stops at a stable inlier set
     /// or its round limit).
     pub quality: Quality,
+}
+
+impl RelativePose {
+    /// `R_21`.
+    pub fn rotation(&self) -> UnitQuaternion<f64> {
+        self.pose.rotation
+    }
+
+    /// Unit translation direction `t_21`, zero for a pure rotation.
+    pub fn translation(&self) -> Vector3<f64> {
+        self.pose.translation.vector
+    }
+
+    /// Number of `true` in [`Self::inliers`].
+    pub fn inlier_count(&self) -> usize {
+        self.inliers.iter().filter(|&&b| b).count()
+    }
+
+    /// Number of `Some` in [`Self::points`].
+    pub fn triangulated(&self) -> usize {
+        self.points.iter().filter(|p| p.is_some()).count()
+    }
 }
 
 /// RANSAC iterations of the two models fitted by [`super::estimate_relative_pose`].
