@@ -21,8 +21,8 @@ use vofront_geometry::{
 
 use crate::input::DepthMap;
 
-/// Anything the facade's pipelines can fail with.
-#[derive(Debug, Error)]
+/// Anything the facade's pipelines and trackers can fail with.
+#[derive(Debug, Clone, PartialEq, Error)]
 pub enum VoError {
     /// Feature detection or matching failed.
     #[error("features: {0}")]
@@ -33,6 +33,27 @@ pub enum VoError {
     /// Direct alignment failed.
     #[error("direct: {0}")]
     Direct(#[from] DirectError),
+    /// The frame has no depth map and the tracker needs one.
+    #[error("frame has no depth")]
+    NoDepth,
+    /// Too few of something (PnP inliers, features with depth) for the estimate to count.
+    #[error("{got} {what}, {need} needed")]
+    TooFew {
+        /// What was counted.
+        what: &'static str,
+        /// How many there were.
+        got: usize,
+        /// How many the tracker needs.
+        need: usize,
+    },
+    /// The direct alignment's inlier ratio is below the tracker's minimum.
+    #[error("inlier ratio {ratio:.2} below {min:.2}")]
+    LowInlierRatio {
+        /// Inliers over valid pixels.
+        ratio: f64,
+        /// The tracker's minimum.
+        min: f64,
+    },
 }
 
 /// Wall-clock time of each stage of [`TwoViewEstimator::relative_pose`], milliseconds.
@@ -93,6 +114,12 @@ pub struct TwoViewEstimator {
 #[deprecated(note = "renamed `TwoViewEstimator` (the sequential trackers are `odometry::Tracker`)")]
 pub type FeatureTracker = TwoViewEstimator;
 
+/// Level-0 pixel of feature `i` (the `f32` detector coordinates widened to the `f64` of the
+/// geometry crate).
+pub(crate) fn feature_pixel(f: &Features, i: u32) -> nalgebra::Vector2<f64> {
+    nalgebra::Vector2::new(f64::from(f.xs[i as usize]), f64::from(f.ys[i as usize]))
+}
+
 /// Milliseconds since `start`.
 pub(crate) fn ms_since(start: Instant) -> f64 {
     start.elapsed().as_secs_f64() * 1e3
@@ -129,11 +156,14 @@ impl TwoViewEstimator {
         let matches = match_descriptors(&f1.descriptors, &f2.descriptors, &self.matching);
         let matching = ms_since(t_match);
         let t_estimate = Instant::now();
-        let point = |f: &Features, i: u32| {
-            nalgebra::Vector2::new(f.xs[i as usize] as f64, f.ys[i as usize] as f64)
-        };
-        let x1: Vec<_> = matches.iter().map(|m| point(&f1, m.query)).collect();
-        let x2: Vec<_> = matches.iter().map(|m| point(&f2, m.train)).collect();
+        let x1: Vec<_> = matches
+            .iter()
+            .map(|m| feature_pixel(&f1, m.query))
+            .collect();
+        let x2: Vec<_> = matches
+            .iter()
+            .map(|m| feature_pixel(&f2, m.train))
+            .collect();
         let estimate = estimate_relative_pose(&x1, &x2, camera, &self.geometry)?;
         let timings = FeatureTimings {
             detect,
