@@ -427,7 +427,7 @@ proptest! {
     ) {
         let cfg = OrbConfig {
             n_features: n,
-            levels,
+            scale_levels: levels,
             scale_factor: scale,
             fast_threshold: fast,
             min_fast_threshold: fast / 2,
