@@ -1,6 +1,6 @@
 //! One obvious entry point per job, on the images a user has.
 //!
-//! - [`FeatureTracker::relative_pose`]: ORB on both frames, kNN-2 Hamming matching with the
+//! - [`TwoViewEstimator::relative_pose`]: ORB on both frames, kNN-2 Hamming matching with the
 //!   ratio test, essential / homography RANSAC with model selection, chirality and refinement;
 //!   the pose `T_21` has a unit translation (monocular scale is unknown).
 //! - Direct alignment lives in [`crate::direct`]: `align_translation(&Plane, &Plane, &cfg)` and
@@ -21,8 +21,8 @@ use vofront_geometry::{
 
 use crate::input::DepthMap;
 
-/// Anything the facade's pipelines can fail with.
-#[derive(Debug, Error)]
+/// Anything the facade's pipelines and trackers can fail with.
+#[derive(Debug, Clone, PartialEq, Error)]
 pub enum VoError {
     /// Feature detection or matching failed.
     #[error("features: {0}")]
@@ -33,9 +33,30 @@ pub enum VoError {
     /// Direct alignment failed.
     #[error("direct: {0}")]
     Direct(#[from] DirectError),
+    /// The frame has no depth map and the tracker needs one.
+    #[error("frame has no depth")]
+    NoDepth,
+    /// Too few of something (PnP inliers, features with depth) for the estimate to count.
+    #[error("{got} {what}, {need} needed")]
+    TooFew {
+        /// What was counted.
+        what: &'static str,
+        /// How many there were.
+        got: usize,
+        /// How many the tracker needs.
+        need: usize,
+    },
+    /// The direct alignment's inlier ratio is below the tracker's minimum.
+    #[error("inlier ratio {ratio:.2} below {min:.2}")]
+    LowInlierRatio {
+        /// Inliers over valid pixels.
+        ratio: f64,
+        /// The tracker's minimum.
+        min: f64,
+    },
 }
 
-/// Wall-clock time of each stage of [`FeatureTracker::relative_pose`], milliseconds.
+/// Wall-clock time of each stage of [`TwoViewEstimator::relative_pose`], milliseconds.
 #[derive(Debug, Clone, Copy, Default, PartialEq)]
 pub struct FeatureTimings {
     /// ORB on both images.
@@ -62,23 +83,24 @@ pub struct FeaturePose {
     pub timings: FeatureTimings,
 }
 
-/// The feature-based two-view front-end: configuration of each stage.
+/// The feature-based two-view estimator (two images in, one relative pose out; the
+/// sequential trackers are [`crate::odometry::Tracker`]): configuration of each stage.
 ///
 /// ```
 /// use vofront::fixtures::image2d::to_gray8;
 /// use vofront::fixtures::scene::{default_camera, pose_wc, Scene};
-/// use vofront::pipeline::FeatureTracker;
+/// use vofront::pipeline::TwoViewEstimator;
 /// let room = Scene::box_room(3);
 /// let (t_w1, t_w2) = (pose_wc([0.0; 3], 0.0, 0.0, 0.0), pose_wc([0.15, 0.0, 0.05], -0.04, 0.0, 0.0));
 /// let cam = default_camera();
 /// let img1 = to_gray8(&room.render(&cam, 640, 480, &t_w1).image);
 /// let img2 = to_gray8(&room.render(&cam, 640, 480, &t_w2).image);
-/// let fit = FeatureTracker::default().relative_pose(&img1, &img2, &cam).unwrap();
+/// let fit = TwoViewEstimator::default().relative_pose(&img1, &img2, &cam).unwrap();
 /// let truth = t_w2.inverse() * t_w1;
-/// assert!(fit.estimate.rotation.angle_to(&truth.rotation).to_degrees() < 0.5);
+/// assert!(fit.estimate.rotation().angle_to(&truth.rotation).to_degrees() < 0.5);
 /// ```
 #[derive(Debug, Clone, Default)]
-pub struct FeatureTracker {
+pub struct TwoViewEstimator {
     /// ORB detector and descriptor.
     pub orb: OrbConfig,
     /// Matching filters (ratio 0.75 by default).
@@ -87,12 +109,23 @@ pub struct FeatureTracker {
     pub geometry: RelativePoseConfig,
 }
 
+/// The former name of [`TwoViewEstimator`] (it estimates one pose from two views; it does not
+/// track a sequence).
+#[deprecated(note = "renamed `TwoViewEstimator` (the sequential trackers are `odometry::Tracker`)")]
+pub type FeatureTracker = TwoViewEstimator;
+
+/// Level-0 pixel of feature `i` (the `f32` detector coordinates widened to the `f64` of the
+/// geometry crate).
+pub(crate) fn feature_pixel(f: &Features, i: u32) -> nalgebra::Vector2<f64> {
+    nalgebra::Vector2::new(f64::from(f.xs[i as usize]), f64::from(f.ys[i as usize]))
+}
+
 /// Milliseconds since `start`.
 pub(crate) fn ms_since(start: Instant) -> f64 {
     start.elapsed().as_secs_f64() * 1e3
 }
 
-impl FeatureTracker {
+impl TwoViewEstimator {
     /// A tracker keeping at most `n_features` ORB features per image, other settings default.
     pub fn with_features(n_features: usize) -> Self {
         Self {
@@ -123,11 +156,14 @@ impl FeatureTracker {
         let matches = match_descriptors(&f1.descriptors, &f2.descriptors, &self.matching);
         let matching = ms_since(t_match);
         let t_estimate = Instant::now();
-        let point = |f: &Features, i: u32| {
-            nalgebra::Vector2::new(f.xs[i as usize] as f64, f.ys[i as usize] as f64)
-        };
-        let x1: Vec<_> = matches.iter().map(|m| point(&f1, m.query)).collect();
-        let x2: Vec<_> = matches.iter().map(|m| point(&f2, m.train)).collect();
+        let x1: Vec<_> = matches
+            .iter()
+            .map(|m| feature_pixel(&f1, m.query))
+            .collect();
+        let x2: Vec<_> = matches
+            .iter()
+            .map(|m| feature_pixel(&f2, m.train))
+            .collect();
         let estimate = estimate_relative_pose(&x1, &x2, camera, &self.geometry)?;
         let timings = FeatureTimings {
             detect,

@@ -28,7 +28,7 @@ use vofront::odometry::direct::{DirectTracker, DirectTrackerConfig};
 use vofront::odometry::feature_rgbd::{FeatureRgbdConfig, FeatureRgbdTracker};
 use vofront::odometry::mono::{MonoConfig, MonoTracker};
 use vofront::odometry::Tracker;
-use vofront::pipeline::FeatureTracker;
+use vofront::pipeline::TwoViewEstimator;
 use vofront::trajectory::Trajectory;
 
 /// Runs `f`, failing the property (with `what`) if it panics.
@@ -266,8 +266,8 @@ proptest! {
         })?;
         let d: Vec<Descriptor> = (0..n % 7).map(|k| Descriptor([k as u64; 4])).collect();
         no_panic("match_descriptors", || match_descriptors(&d, &[], &MatchConfig::default()))?;
-        no_panic("FeatureTracker::relative_pose", || {
-            FeatureTracker::default().relative_pose(&img1, &img2, &camera())
+        no_panic("TwoViewEstimator::relative_pose", || {
+            TwoViewEstimator::default().relative_pose(&img1, &img2, &camera())
         })?;
     }
 
@@ -427,7 +427,7 @@ proptest! {
     ) {
         let cfg = OrbConfig {
             n_features: n,
-            levels,
+            scale_levels: levels,
             scale_factor: scale,
             fast_threshold: fast,
             min_fast_threshold: fast / 2,

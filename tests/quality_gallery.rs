@@ -62,7 +62,7 @@ fn room_pair(t_w2: Isometry3<f64>) -> (GrayImage, GrayImage, GrayF32, Isometry3<
 
 fn rotation_error_deg(o: &Outcome, truth: &Isometry3<f64>) -> f64 {
     match &o.feature {
-        Some(Ok(f)) => f.estimate.rotation.angle_to(&truth.rotation).to_degrees(),
+        Some(Ok(f)) => f.estimate.rotation().angle_to(&truth.rotation).to_degrees(),
         _ => f64::INFINITY,
     }
 }
@@ -134,7 +134,7 @@ fn identical_images_give_an_unreliable_motion_and_an_ok_zero_shift() {
     match &o.feature {
         Some(Ok(f)) => {
             assert!(f.estimate.quality.reasons.contains(&Reason::PureRotation));
-            assert!(f.estimate.rotation.angle().to_degrees() < 0.05);
+            assert!(f.estimate.rotation().angle().to_degrees() < 0.05);
         }
         _ => unreachable!("verdict checked above"),
     }

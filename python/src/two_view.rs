@@ -45,10 +45,10 @@ pub fn relpose<'py>(
     })?;
     let out = PyDict::new(py);
     let (r, _) = rotation_translation(py, &fit.pose)?;
-    let t = fit.translation;
+    let t = fit.translation();
     out.set_item("R", r)?;
     out.set_item("t", PyArray1::from_slice(py, &[t.x, t.y, t.z]))?;
-    out.set_item("inliers", fit.inlier_count)?;
+    out.set_item("inliers", fit.inlier_count())?;
     out.set_item("ms", ms)?;
     out.set_item("T_21", pose_matrix(py, &fit.pose))?;
     out.set_item("model", model_name(fit.model))?;

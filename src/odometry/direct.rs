@@ -17,6 +17,7 @@ use vofront_geometry::Camera;
 use super::keyframe::{KeyframePolicy, KeyframeView};
 use super::{ms_since, FrameEstimate, FrameQuality, KeyframeSlot, TrackStatus, Tracker};
 use crate::dataset::Frame;
+use crate::pipeline::VoError;
 
 /// Settings of [`DirectTracker`].
 #[derive(Debug, Clone)]
@@ -80,11 +81,11 @@ impl DirectTracker {
         frame: &Frame,
         image: Plane,
         t_wc: Isometry3<f64>,
-    ) -> Result<Keyframe, String> {
-        let depth = frame.depth.as_ref().ok_or("frame has no depth")?;
+    ) -> Result<Keyframe, VoError> {
+        let depth = frame.depth.as_ref().ok_or(VoError::NoDepth)?;
         let depth = Plane::from_gray_f32(depth);
-        let rgbd = RgbdFrame::new(image, depth, &self.camera).map_err(|e| e.to_string())?;
-        let reference = Se3Reference::new(&rgbd, &self.cfg.se3).map_err(|e| e.to_string())?;
+        let rgbd = RgbdFrame::new(image, depth, &self.camera)?;
+        let reference = Se3Reference::new(&rgbd, &self.cfg.se3)?;
         let selected = reference.selected().first().copied().unwrap_or(0);
         Ok(Keyframe {
             reference,
@@ -111,13 +112,13 @@ impl Tracker for DirectTracker {
         let fit = kf
             .reference
             .align(&current, &prior, &self.cfg.se3)
-            .map_err(|e| e.to_string())
+            .map_err(VoError::from)
             .and_then(|r| {
                 if r.inlier_ratio < self.cfg.min_inlier_ratio {
-                    Err(format!(
-                        "inlier ratio {:.2} below {:.2}",
-                        r.inlier_ratio, self.cfg.min_inlier_ratio
-                    ))
+                    Err(VoError::LowInlierRatio {
+                        ratio: r.inlier_ratio,
+                        min: self.cfg.min_inlier_ratio,
+                    })
                 } else {
                     Ok(r)
                 }
@@ -126,7 +127,7 @@ impl Tracker for DirectTracker {
             Ok(fit) => fit,
             Err(why) => {
                 let made = self.make_keyframe(frame, current, predicted);
-                return self.slot.restart(made, predicted, why, start);
+                return self.slot.restart(made, predicted, why.to_string(), start);
             }
         };
         let t_wc = kf.t_wc * fit.pose.inverse();

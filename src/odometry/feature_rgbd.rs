@@ -12,17 +12,18 @@
 
 use std::time::Instant;
 
-use nalgebra::{Isometry3, Point3, Vector2};
+use nalgebra::{Isometry3, Point3};
 use vofront_features::{Features, MatchConfig, Orb, OrbConfig};
 use vofront_geometry::pnp::PnpConfig;
 use vofront_geometry::Camera;
 
 use super::keyframe::{KeyframePolicy, KeyframeView};
 use super::{
-    ms_since, FrameEstimate, FrameQuality, KeyframeSlot, Located, PointLocator, TrackStatus,
-    Tracker,
+    feature_pixel, ms_since, FrameEstimate, FrameQuality, KeyframeSlot, Located, PointLocator,
+    TrackStatus, Tracker,
 };
 use crate::dataset::Frame;
+use crate::pipeline::VoError;
 
 /// Settings of [`FeatureRgbdTracker`].
 #[derive(Debug, Clone)]
@@ -100,8 +101,8 @@ impl FeatureRgbdTracker {
         frame: &Frame,
         features: Features,
         t_wc: Isometry3<f64>,
-    ) -> Result<Keyframe, String> {
-        let depth = frame.depth.as_ref().ok_or("frame has no depth")?;
+    ) -> Result<Keyframe, VoError> {
+        let depth = frame.depth.as_ref().ok_or(VoError::NoDepth)?;
         let (lo, hi) = self.cfg.depth_range;
         let points: Vec<Option<Point3<f64>>> = (0..features.len())
             .map(|i| {
@@ -112,20 +113,20 @@ impl FeatureRgbdTracker {
                 if !(z > lo && z < hi) {
                     return None;
                 }
-                let n = self.camera.pixel_to_normalized(&Vector2::new(
-                    features.xs[i] as f64,
-                    features.ys[i] as f64,
-                ))?;
+                let n = self
+                    .camera
+                    .pixel_to_normalized(&feature_pixel(&features, i as u32))?;
                 Some(Point3::new(n.x * z, n.y * z, z))
             })
             .collect();
         let mut depths: Vec<f64> = points.iter().flatten().map(|p| p.z).collect();
         let with_depth = depths.len();
         if with_depth < self.cfg.min_inliers {
-            return Err(format!(
-                "only {with_depth} features with depth, {} needed",
-                self.cfg.min_inliers
-            ));
+            return Err(VoError::TooFew {
+                what: "features with depth",
+                got: with_depth,
+                need: self.cfg.min_inliers,
+            });
         }
         let median_depth = crate::robust::median_in_place(&mut depths).unwrap_or(1.0);
         Ok(Keyframe {
@@ -147,9 +148,9 @@ impl Tracker for FeatureRgbdTracker {
             Ok(f) => f,
             Err(e) => {
                 return self.slot.restart(
-                    Err("no features".into()),
+                    Err(VoError::from(e)),
                     predicted,
-                    e.to_string(),
+                    "no features".into(),
                     start,
                 )
             }
@@ -178,7 +179,7 @@ impl Tracker for FeatureRgbdTracker {
             Ok(fit) => fit,
             Err(why) => {
                 let made = self.make_keyframe(frame, features, predicted);
-                return self.slot.restart(made, predicted, why, start);
+                return self.slot.restart(made, predicted, why.to_string(), start);
             }
         };
         let t_wc = kf.t_wc * fit.pose.inverse();

@@ -90,7 +90,8 @@ pub trait Tracker {
     fn track(&mut self, frame: &Frame) -> FrameEstimate;
 }
 
-pub(crate) use crate::pipeline::ms_since;
+use crate::pipeline::VoError;
+pub(crate) use crate::pipeline::{feature_pixel, ms_since};
 
 /// What every keyframe tracker keeps between frames: its keyframe `K`, the constant-velocity
 /// prior, and whether tracking has started (so a restart can be told from the first frame).
@@ -123,7 +124,7 @@ impl<K> KeyframeSlot<K> {
     /// dropped either way.
     pub fn restart(
         &mut self,
-        made: Result<K, String>,
+        made: Result<K, VoError>,
         t_wc: Isometry3<f64>,
         why: String,
         start: Instant,
@@ -189,11 +190,6 @@ impl FrameEstimate {
     }
 }
 
-/// Level-0 pixel of feature `i`.
-pub(crate) fn feature_pixel(f: &Features, i: u32) -> Vector2<f64> {
-    Vector2::new(f.xs[i as usize] as f64, f.ys[i as usize] as f64)
-}
-
 /// How a feature tracker locates a frame against keyframe features that carry 3D points.
 pub(crate) struct PointLocator<'a> {
     /// The camera of every frame.
@@ -215,7 +211,7 @@ pub(crate) struct Located {
     /// The point of each match, in the frame the prior maps from.
     pub points: Vec<Point3<f64>>,
     /// `T_cur_from`: the points' frame into the current camera.
-    pub fit: Result<PnpResult, String>,
+    pub fit: Result<PnpResult, VoError>,
 }
 
 impl PointLocator<'_> {
@@ -258,15 +254,16 @@ impl PointLocator<'_> {
             .map(|m| feature_pixel(current, m.train))
             .collect();
         let fit = solve_pnp_ransac(&world, &pixels, self.camera, Some(prior), self.pnp)
-            .map_err(|e| e.to_string())
+            .map_err(VoError::from)
             .and_then(|fit| {
                 if fit.inlier_count >= self.min_inliers {
                     Ok(fit)
                 } else {
-                    Err(format!(
-                        "{} PnP inliers, {} needed",
-                        fit.inlier_count, self.min_inliers
-                    ))
+                    Err(VoError::TooFew {
+                        what: "PnP inliers",
+                        got: fit.inlier_count,
+                        need: self.min_inliers,
+                    })
                 }
             });
         Located {

@@ -16,7 +16,7 @@ use vofront_robust::{Quality, QualityConfig};
 
 use super::{rotation_rows, Entry, Rows3};
 use crate::input::DepthMap;
-use crate::pipeline::{depth_plane, gray_plane, ms_since, FeaturePose, FeatureTracker};
+use crate::pipeline::{depth_plane, gray_plane, ms_since, FeaturePose, TwoViewEstimator};
 
 /// Which estimators [`estimate`] runs.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
@@ -222,7 +222,7 @@ pub fn estimate(inputs: &Inputs) -> Outcome {
     let run_feature = inputs.method != Method::Direct;
     let run_direct = inputs.method != Method::Feature;
     let feature = run_feature.then(|| {
-        FeatureTracker::with_features(inputs.features)
+        TwoViewEstimator::with_features(inputs.features)
             .relative_pose(&inputs.img1, &inputs.img2, &inputs.camera)
             .map_err(|e| e.to_string())
     });
@@ -333,12 +333,12 @@ pub struct PoseReport {
 impl PoseReport {
     /// The report of a pose estimated from `matches` correspondences.
     pub fn new(e: &RelativePose, matches: usize) -> Self {
-        let t = e.translation;
+        let t = e.translation();
         Self {
             r: rotation_rows(&e.pose),
             t: [t.x, t.y, t.z],
             matches,
-            inliers: e.inlier_count,
+            inliers: e.inlier_count(),
             model: model_name(e.model),
             parallax_deg: e.parallax_deg,
             quality: e.quality.clone(),

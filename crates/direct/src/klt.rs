@@ -26,7 +26,9 @@ const MIN_LEVEL_SIDE: usize = 8;
 pub struct KltConfig {
     /// Side of the square window, pixels (odd, at least 3).
     pub window: usize,
-    /// Pyramid levels including full resolution (OpenCV's `maxLevel + 1`).
+    /// Pyramid levels as factor-2 octaves (each level half the size of the one below; ORB's 1.2-ratio levels are
+    /// `OrbConfig::scale_levels`), including full resolution (OpenCV's
+    /// `maxLevel + 1`).
     pub levels: usize,
     /// Iteration limit per level.
     pub max_iterations: usize,

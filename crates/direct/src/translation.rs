@@ -18,7 +18,8 @@ use crate::warp2d::{align_2d, TranslationMethod, WarpConfig, WarpKind};
 /// Settings of [`align_translation`].
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct TranslationConfig {
-    /// Pyramid levels (fewer on small images); a shift of up to about `2^(levels-1)` times the
+    /// Pyramid levels as factor-2 octaves (each level half the size of the one below; ORB's 1.2-ratio levels are
+    /// `OrbConfig::scale_levels`), fewer on small images; a shift of up to about `2^(levels-1)` times the
     /// texture scale is recovered.
     pub levels: usize,
     /// Iteration limit per level.

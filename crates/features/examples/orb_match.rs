@@ -66,7 +66,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         f1.len(),
         f2.len(),
         matches.len(),
-        &levels[..orb.config().levels]
+        &levels[..orb.config().scale_levels]
     );
     if let Some(path) = args.get(3) {
         let mut out = std::io::BufWriter::new(std::fs::File::create(path)?);

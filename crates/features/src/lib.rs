@@ -1,6 +1,6 @@
 //! ORB features and Hamming matching for vofront.
 //!
-//! - [`Orb`]: image pyramid (`levels` levels, ratio `scale_factor`), FAST-9 corners with a
+//! - [`Orb`]: image pyramid (`scale_levels` levels, ratio `scale_factor`), FAST-9 corners with a
 //!   per-cell threshold fallback and non-maximum suppression, Harris ranking, a quadtree
 //!   spread of `n_features` split across levels in proportion to their area, orientation by
 //!   intensity centroid and steered BRIEF with the learned ORB pattern ([`pattern`]), so the

@@ -16,9 +16,11 @@ use crate::{Descriptor, FeatureError};
 pub struct OrbConfig {
     /// Number of features to keep over all levels (0 gives an empty result).
     pub n_features: usize,
-    /// Number of pyramid levels (1..=32); levels smaller than the border are dropped.
-    pub levels: usize,
-    /// Scale ratio between consecutive levels (> 1 unless `levels == 1`).
+    /// Number of ORB scale levels (1..=32) at ratio `scale_factor` (1.2 by default: not the
+    /// factor-2 octaves that the direct crate's `levels` count); levels smaller than the border
+    /// are dropped.
+    pub scale_levels: usize,
+    /// Scale ratio between consecutive levels (> 1 unless `scale_levels == 1`).
     pub scale_factor: f32,
     /// FAST threshold in grey levels: a corner needs a 9-arc all brighter than `I + t` or all
     /// darker than `I - t`.
@@ -43,7 +45,7 @@ impl Default for OrbConfig {
     fn default() -> Self {
         Self {
             n_features: 2000,
-            levels: 8,
+            scale_levels: 8,
             scale_factor: 1.2,
             fast_threshold: 20,
             min_fast_threshold: 7,
@@ -127,15 +129,16 @@ pub struct Orb {
 }
 
 impl Orb {
-    /// Validates `cfg`: `levels` in 1..=32, finite `scale_factor > 1` (or `levels == 1`),
+    /// Validates `cfg`: `scale_levels` in 1..=32, finite `scale_factor > 1` (or
+    /// `scale_levels == 1`),
     /// thresholds `1 <= min_fast_threshold <= fast_threshold`, `spread_candidates >= 1`,
     /// `patch_size == 31`.
     pub fn new(cfg: OrbConfig) -> Result<Self, FeatureError> {
         let bad = |what: &'static str| Err(FeatureError::InvalidConfig(what));
-        if !(1..=32).contains(&cfg.levels) {
-            return bad("levels must be in 1..=32");
+        if !(1..=32).contains(&cfg.scale_levels) {
+            return bad("scale_levels must be in 1..=32");
         }
-        if !cfg.scale_factor.is_finite() || (cfg.scale_factor <= 1.0 && cfg.levels > 1) {
+        if !cfg.scale_factor.is_finite() || (cfg.scale_factor <= 1.0 && cfg.scale_levels > 1) {
             return bad("scale_factor must be finite and > 1");
         }
         if cfg.fast_threshold == 0 || cfg.min_fast_threshold == 0 {
@@ -186,8 +189,12 @@ impl Orb {
         let (first, (above, detected_above)) = rayon::join(
             || self.detect_level(&base.image, border),
             || {
-                let above =
-                    pyramid::build_above(&base.image, cfg.levels, cfg.scale_factor, 2 * border + 1);
+                let above = pyramid::build_above(
+                    &base.image,
+                    cfg.scale_levels,
+                    cfg.scale_factor,
+                    2 * border + 1,
+                );
                 let detected: Vec<(Vec<Corner>, Plane)> = above
                     .par_iter()
                     .map(|level| self.detect_level(&level.image, border))

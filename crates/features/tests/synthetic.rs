@@ -208,7 +208,7 @@ fn bad_input_gives_empty_results_or_typed_errors() {
     assert!(none.detect_and_describe(&textured).unwrap().is_empty());
     for cfg in [
         OrbConfig {
-            levels: 0,
+            scale_levels: 0,
             ..OrbConfig::default()
         },
         OrbConfig {

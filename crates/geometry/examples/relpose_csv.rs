@@ -31,7 +31,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         match flag.as_str() {
             "--K" => k = parse_list(value),
             "--dist" => dist = parse_list(value),
-            "--threshold" => cfg.threshold_px = value.parse()?,
+            "--threshold" => cfg.ransac.threshold = value.parse()?,
             "--reps" => reps = value.parse()?,
             "--min-parallax" => cfg.min_parallax_deg = value.parse()?,
             "--homography-ratio" => cfg.homography_ratio = value.parse()?,
@@ -85,7 +85,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
                 format!("[{}, {}, {}]", t.x, t.y, t.z),
             )
         });
-    let r = rel.rotation.to_rotation_matrix();
+    let r = rel.rotation().to_rotation_matrix();
     let m = r.matrix();
     println!(
         "{{\"R\": [[{}, {}, {}], [{}, {}, {}], [{}, {}, {}]], \"t\": [{}, {}, {}], \"model\": \"{:?}\", \
@@ -93,9 +93,9 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
          \"homography_ratio\": {:.3}, \"iterations\": [{}, {}], \"ms\": {:.3}, \"n\": {}, \
          \"ambiguous\": {}, \"alt_R\": {}, \"alt_t\": {}}}",
         m[(0, 0)], m[(0, 1)], m[(0, 2)], m[(1, 0)], m[(1, 1)], m[(1, 2)], m[(2, 0)], m[(2, 1)], m[(2, 2)],
-        rel.translation.x, rel.translation.y, rel.translation.z, rel.model, rel.inlier_count,
-        rel.triangulated, rel.parallax_deg, rel.low_parallax, rel.homography_score_ratio,
-        rel.iterations.0, rel.iterations.1, times[times.len() / 2], x1.len(), rel.ambiguous,
+        rel.translation().x, rel.translation().y, rel.translation().z, rel.model, rel.inlier_count(),
+        rel.triangulated(), rel.parallax_deg, rel.low_parallax, rel.homography_score_ratio,
+        rel.iterations.essential, rel.iterations.homography, times[times.len() / 2], x1.len(), rel.ambiguous,
         alt.0, alt.1
     );
     Ok(())

@@ -36,7 +36,8 @@ pub enum GeometryError {
         /// Inliers required.
         need: usize,
     },
-    /// A configuration value is out of range.
+    /// A configuration value (or an index into the input) is out of range; the payload names
+    /// the rule, as in every vofront crate's `InvalidConfig`.
     #[error("invalid configuration: {0}")]
-    InvalidConfig(String),
+    InvalidConfig(&'static str),
 }

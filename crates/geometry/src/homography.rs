@@ -77,25 +77,9 @@ pub fn homography_dlt(x1: &[Vector2<f64>], x2: &[Vector2<f64>]) -> Option<Matrix
     (n > 0.0 && n.is_finite()).then(|| hm / n)
 }
 
-/// `H x` dehomogenised.
-#[inline]
-pub fn transfer(h: &Matrix3<f64>, x: &Vector2<f64>) -> Vector2<f64> {
-    let p = h * x.push(1.0);
-    Vector2::new(p.x / p.z, p.y / p.z)
-}
-
-/// Squared transfer errors `(|x2 - H x1|^2, |x1 - H^-1 x2|^2)` in normalized units.
-#[inline]
-pub fn transfer_errors_sq(
-    h: &Matrix3<f64>,
-    h_inv: &Matrix3<f64>,
-    x1: &Vector2<f64>,
-    x2: &Vector2<f64>,
-) -> (f64, f64) {
-    let fwd = (transfer(h, x1) - x2).norm_squared();
-    let bwd = (transfer(h_inv, x2) - x1).norm_squared();
-    (fwd, bwd)
-}
+/// The transfer `H x` and its squared errors, from [`crate::residual`] (their one
+/// implementation).
+pub use crate::residual::{transfer, transfer_sq as transfer_errors_sq};
 
 /// Relative tolerance under which all three singular values of `H` count as equal (a
 /// rotation: the translation is below `1e-5` of the plane distance).

@@ -5,6 +5,8 @@
 //! - [`essential`]: five-point and eight-point solvers, Sampson error, pose recovery;
 //! - [`homography`]: four-point DLT and decomposition into `(R, t, n)`;
 //! - [`ransac`]: LO-MSAC driver generic over an [`ransac::Estimator`];
+//! - [`residual`]: Sampson, symmetric transfer and reprojection errors, one answer for a
+//!   degenerate denominator (infinite: an outlier);
 //! - [`relative_pose`]: the full two-view pipeline [`estimate_relative_pose`];
 //! - [`triangulate`]: DLT and midpoint triangulation;
 //! - [`pnp`]: P3P in RANSAC with robust motion-only refinement, [`solve_pnp_ransac`];
@@ -33,8 +35,8 @@
 //!     x2.push(pixel(t_21 * p));
 //! }
 //! let fit = estimate_relative_pose(&x1, &x2, &camera, &RelativePoseConfig::default()).unwrap();
-//! assert!(fit.rotation.angle_to(&t_21.rotation) < 1e-6);
-//! assert!((fit.translation - t_21.translation.vector.normalize()).norm() < 1e-6);
+//! assert!(fit.rotation().angle_to(&t_21.rotation) < 1e-6);
+//! assert!((fit.translation() - t_21.translation.vector.normalize()).norm() < 1e-6);
 //! ```
 #![warn(missing_docs)]
 
@@ -48,6 +50,7 @@ pub mod p3p;
 pub mod pnp;
 pub mod ransac;
 pub mod relative_pose;
+pub mod residual;
 pub mod triangulate;
 pub mod undistort_map;
 
@@ -55,6 +58,7 @@ pub use bundle::{bundle_adjust, BundleConfig, BundleProblem, BundleReport, Obser
 pub use camera::{Camera, CameraError, Distortion, Pinhole};
 pub use error::GeometryError;
 pub use pnp::{solve_pnp_ransac, PnpConfig, PnpResult};
+pub use ransac::RansacConfig;
 pub use relative_pose::{estimate_relative_pose, Model, RelativePose, RelativePoseConfig};
 pub use triangulate::{triangulate_dlt, triangulate_midpoint};
 pub use undistort_map::UndistortMap;

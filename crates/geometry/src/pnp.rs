@@ -21,14 +21,9 @@ const MIN_POINTS: usize = 4;
 /// Settings of [`solve_pnp_ransac`].
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct PnpConfig {
-    /// Inlier threshold on the reprojection error, pixels.
-    pub threshold_px: f64,
-    /// RANSAC confidence.
-    pub confidence: f64,
-    /// RANSAC iteration cap.
-    pub max_iterations: usize,
-    /// Sampler seed.
-    pub seed: u64,
+    /// RANSAC settings; `ransac.threshold` is the inlier threshold on the reprojection error
+    /// in pixels (default 2 px, at most 1000 iterations).
+    pub ransac: RansacConfig,
     /// Huber IRLS refinement on the inliers.
     pub refine: bool,
     /// Residual scale of the Huber loss (pixels); the Huber corner is at `1.345` of it.
@@ -40,10 +35,11 @@ pub struct PnpConfig {
 impl Default for PnpConfig {
     fn default() -> Self {
         Self {
-            threshold_px: 2.0,
-            confidence: 0.999,
-            max_iterations: 1000,
-            seed: 0,
+            ransac: RansacConfig {
+                threshold: 2.0,
+                max_iterations: 1000,
+                ..RansacConfig::default()
+            },
             refine: true,
             sigma_px: 1.0,
             min_inliers: 6,
@@ -138,11 +134,7 @@ impl Estimator for PnpEstimator<'_> {
     }
 
     fn residual_sq(&self, t: &Isometry3<f64>, i: usize) -> f64 {
-        let x = t * self.world[i];
-        if x.z <= 1e-9 {
-            return f64::INFINITY;
-        }
-        (Vector2::new(x.x / x.z, x.y / x.z) - self.normalized[i]).norm_squared()
+        crate::residual::reprojection_sq(&(t * self.world[i]).coords, &self.normalized[i])
     }
 }
 
@@ -176,12 +168,12 @@ impl Problem<6> for Reprojection<'_> {
 }
 
 /// Pixel `u = K D(x / z, y / z)` of the camera-frame point `x` (distortion `D` included) and
-/// its Jacobian `du/dx` (2 x 3, pixels per metre); `None` when `z <= 1e-9` (behind the camera).
+/// its Jacobian `du/dx` (2 x 3, pixels per metre); `None` when `z <= MIN_DEPTH` (behind the camera).
 pub(crate) fn project_with_jacobian(
     camera: &Camera,
     x: &Vector3<f64>,
 ) -> Option<(Vector2<f64>, Matrix2x3<f64>)> {
-    if x.z <= 1e-9 {
+    if x.z <= crate::residual::MIN_DEPTH {
         return None;
     }
     let k = &camera.pinhole;
@@ -201,7 +193,7 @@ fn reprojection_px(camera: &Camera, t: &Isometry3<f64>, p: &Point3<f64>, u: &Vec
 }
 
 /// Estimates the camera pose `T_cw` from world points and their observed (distorted) pixels:
-/// P3P in LO-MSAC (threshold `threshold_px / f` in normalized coordinates; local optimisation
+/// P3P in LO-MSAC (threshold `ransac.threshold / f` in normalized coordinates; local optimisation
 /// by a few Huber IRLS steps on the inliers), an optional prior
 /// pose competing with the hypotheses, then Huber IRLS on the pixel reprojection error of the
 /// inliers.
@@ -246,11 +238,7 @@ pub fn solve_pnp_ransac(
     {
         return Err(GeometryError::NonFinite);
     }
-    if !(cfg.threshold_px > 0.0 && cfg.confidence > 0.0 && cfg.confidence < 1.0) {
-        return Err(GeometryError::InvalidConfig(
-            "threshold_px must be > 0 and confidence in (0, 1)".into(),
-        ));
-    }
+    cfg.ransac.validate()?;
     let mut world = Vec::with_capacity(pixels.len());
     let mut bearings = Vec::with_capacity(pixels.len());
     let mut normalized = Vec::with_capacity(pixels.len());
@@ -288,14 +276,8 @@ pub fn solve_pnp_ransac(
         camera,
         sigma_px: cfg.sigma_px,
     };
-    let thr = cfg.threshold_px / focal;
-    let rcfg = RansacConfig {
-        threshold: thr,
-        confidence: cfg.confidence,
-        max_iterations: cfg.max_iterations,
-        seed: cfg.seed,
-        ..RansacConfig::default()
-    };
+    let rcfg = cfg.ransac.in_normalized_units(focal);
+    let thr = rcfg.threshold;
     let found = ransac(&est, &rcfg);
     let iterations = found.as_ref().map_or(0, |r| r.iterations);
     let mut best = found.map(|r| (r.model, r.score));
@@ -313,7 +295,7 @@ pub fn solve_pnp_ransac(
     let inliers_of = |t: &Isometry3<f64>| -> Vec<usize> {
         (0..world.len())
             .filter(|&k| {
-                reprojection_px(camera, t, &world[k], &pixels[index[k]]) < cfg.threshold_px
+                reprojection_px(camera, t, &world[k], &pixels[index[k]]) < cfg.ransac.threshold
             })
             .collect()
     };

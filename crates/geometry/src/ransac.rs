@@ -18,6 +18,8 @@
 //! well-supported model cannot end the search before the true one had a chance to be sampled.
 
 use rand::rngs::StdRng;
+
+use crate::error::GeometryError;
 use rand::{Rng, SeedableRng};
 
 /// A model family estimated from correspondences, with squared residuals in the units of the
@@ -67,7 +69,9 @@ pub trait Estimator {
     }
 }
 
-/// Settings of [`ransac`].
+/// Settings of [`ransac`], embedded as the `ransac` field of every configuration whose
+/// estimator runs it ([`crate::RelativePoseConfig`], [`crate::PnpConfig`]; there the threshold
+/// is in pixels).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct RansacConfig {
     /// Inlier threshold on the residual (not squared), in the estimator's units.
@@ -83,6 +87,29 @@ pub struct RansacConfig {
     /// Rounds of local optimisation per new best model (0 disables LO, and then every best
     /// model counts as confirmed for the stopping rule).
     pub lo_rounds: usize,
+}
+
+impl RansacConfig {
+    /// [`GeometryError::InvalidConfig`] unless `threshold > 0` and `confidence` is in
+    /// `(0, 1)`.
+    pub fn validate(&self) -> Result<(), GeometryError> {
+        if self.threshold > 0.0 && self.confidence > 0.0 && self.confidence < 1.0 {
+            Ok(())
+        } else {
+            Err(GeometryError::InvalidConfig(
+                "RANSAC threshold must be > 0 and confidence in (0, 1)",
+            ))
+        }
+    }
+
+    /// The same settings with the threshold converted from pixels to normalized coordinates
+    /// (`threshold / focal`, focal length in pixels).
+    pub fn in_normalized_units(&self, focal: f64) -> Self {
+        Self {
+            threshold: self.threshold / focal,
+            ..*self
+        }
+    }
 }
 
 impl Default for RansacConfig {

@@ -5,6 +5,8 @@
 
 use nalgebra::{Isometry3, Matrix4, Point3, Vector3, Vector4};
 
+use crate::residual::{row_major, Epipolar};
+
 /// Linear (DLT) triangulation: the homogeneous `X` minimising `|A X|` with, for each view
 /// `P = [R | t]` and ray `f`, the rows `f_x P_3 - f_z P_1` and `f_y P_3 - f_z P_2`
 /// (each row scaled to unit norm). `None` for a point at infinity or non-finite input.
@@ -107,7 +109,8 @@ pub fn triangulate_midpoint(
 /// `x1' = x1 - c / D (E^T x2)_{1,2}`, `x2' = x2 - c / D (E x1)_{1,2}` with `c = x2^T E x1` and
 /// `D = (E x1)_1^2 + (E x1)_2^2 + (E^T x2)_1^2 + (E^T x2)_2^2`, then intersected by
 /// [`triangulate_midpoint`]. The reprojection errors are then about the Sampson distance even
-/// for nearly parallel rays. `None` for rays with `z <= 0` or parallel rays.
+/// for nearly parallel rays. `None` for rays with `z <= 0`, parallel rays, or a degenerate
+/// Sampson denominator (an outlier, as everywhere in [`crate::residual`]).
 ///
 /// ```
 /// use nalgebra::{Isometry3, Point3, Vector3};
@@ -128,18 +131,14 @@ pub fn triangulate_corrected(
     let x1 = f1 / f1.z;
     let x2 = f2 / f2.z;
     let e = crate::lie::hat(&pose.translation.vector) * pose.rotation.to_rotation_matrix().matrix();
-    let l2 = e * x1;
-    let l1 = e.transpose() * x2;
-    let c = x2.dot(&l2);
-    let den = l2.x * l2.x + l2.y * l2.y + l1.x * l1.x + l1.y * l1.y;
-    if den > 0.0 {
-        let k = c / den;
-        let y1 = Vector3::new(x1.x - k * l1.x, x1.y - k * l1.y, 1.0);
-        let y2 = Vector3::new(x2.x - k * l2.x, x2.y - k * l2.y, 1.0);
-        triangulate_midpoint(pose, &y1, &y2)
-    } else {
-        triangulate_midpoint(pose, &x1, &x2)
+    let ep = Epipolar::new(&row_major(&e), x1.x, x1.y, x2.x, x2.y);
+    if !ep.is_regular() {
+        return None;
     }
+    let k = ep.c / ep.d;
+    let y1 = Vector3::new(x1.x - k * ep.l1[0], x1.y - k * ep.l1[1], 1.0);
+    let y2 = Vector3::new(x2.x - k * ep.l2[0], x2.y - k * ep.l2[1], 1.0);
+    triangulate_midpoint(pose, &y1, &y2)
 }
 
 /// Parallax angle in degrees at `p` (camera-1 frame) between the rays from the two camera

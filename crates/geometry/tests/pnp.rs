@@ -10,6 +10,7 @@ use vofront_geometry::camera::{Camera, Distortion, Pinhole};
 use vofront_geometry::p3p::p3p;
 use vofront_geometry::pnp::{solve_pnp_ransac, PnpConfig};
 use vofront_geometry::GeometryError;
+use vofront_geometry::RansacConfig;
 
 /// TUM fr1 lens: the refinement must model the distortion.
 fn distorted_camera() -> Camera {
@@ -108,7 +109,10 @@ fn covariance_grows_with_noise() {
             &cam,
             None,
             &PnpConfig {
-                threshold_px: 4.0,
+                ransac: RansacConfig {
+                    threshold: 4.0,
+                    ..PnpConfig::default().ransac
+                },
                 ..Default::default()
             },
         )
@@ -125,7 +129,10 @@ fn prior_is_used_when_it_is_the_best_hypothesis() {
     let cam = common::camera();
     let (t_cw, world, px, _) = pnp_scene(5, 50, 0.0, 0.0, &cam);
     let cfg = PnpConfig {
-        max_iterations: 1,
+        ransac: RansacConfig {
+            max_iterations: 1,
+            ..PnpConfig::default().ransac
+        },
         refine: false,
         ..Default::default()
     };

@@ -44,13 +44,13 @@ proptest! {
         if rel.low_parallax {
             // Flagged only for genuinely small parallax; the rotation is still accurate.
             prop_assert!(true_parallax < LOW_PARALLAX_MAX_DEG, "{}", true_parallax);
-            let rot = rel.rotation.angle_to(&scene.pose.rotation).to_degrees();
+            let rot = rel.rotation().angle_to(&scene.pose.rotation).to_degrees();
             prop_assert!(rot < ROT_BOUND_DEG);
             return Ok(());
         }
-        let rot = rel.rotation.angle_to(&scene.pose.rotation).to_degrees();
-        prop_assert!(rot < ROT_BOUND_DEG, "rot {} parallax {} inliers {}", rot, rel.parallax_deg, rel.inlier_count);
-        let dir = direction_angle_deg(&rel.translation, &scene.pose.translation.vector);
+        let rot = rel.rotation().angle_to(&scene.pose.rotation).to_degrees();
+        prop_assert!(rot < ROT_BOUND_DEG, "rot {} parallax {} inliers {}", rot, rel.parallax_deg, rel.inlier_count());
+        let dir = direction_angle_deg(&rel.translation(), &scene.pose.translation.vector);
         prop_assert!(dir < DIR_BOUND_DEG2 / rel.parallax_deg, "dir {} parallax {}", dir, rel.parallax_deg);
         // Inliers: nearly all true inliers, hardly any outlier.
         let true_in = scene.is_inlier.iter().filter(|&&b| b).count();
@@ -69,7 +69,7 @@ proptest! {
                 prop_assert!(e1 < REPROJ_BOUND_PX && e2 < REPROJ_BOUND_PX, "{} {}", e1, e2);
             }
         }
-        prop_assert!(rel.triangulated as f64 >= MIN_TRIANGULATED * rel.inlier_count as f64);
+        prop_assert!(rel.triangulated() as f64 >= MIN_TRIANGULATED * rel.inlier_count() as f64);
     }
 }
 
@@ -128,11 +128,11 @@ fn pure_rotation_is_flagged_and_rotation_recovered() {
         )
         .unwrap();
         assert!(rel.low_parallax && rel.pure_rotation, "seed {seed}");
-        assert_eq!(rel.translation, Vector3::zeros());
+        assert_eq!(rel.translation(), Vector3::zeros());
         assert!(
-            rel.rotation.angle_to(&r).to_degrees() < 0.2,
+            rel.rotation().angle_to(&r).to_degrees() < 0.2,
             "{}",
-            rel.rotation.angle_to(&r).to_degrees()
+            rel.rotation().angle_to(&r).to_degrees()
         );
     }
 }
@@ -178,9 +178,9 @@ fn bad_input_gives_typed_errors() {
     match estimate_relative_pose(&scene.u1, &noise2, &cam, &cfg) {
         Err(_) => {}
         Ok(rel) => assert!(
-            rel.inlier_count <= noise2.len() / 2,
+            rel.inlier_count() <= noise2.len() / 2,
             "{} of {} random matches called inliers",
-            rel.inlier_count,
+            rel.inlier_count(),
             noise2.len()
         ),
     }

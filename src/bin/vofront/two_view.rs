@@ -46,15 +46,18 @@ pub fn print_text(outcome: &Outcome) {
         match r {
             Ok(f) => {
                 let e = &f.estimate;
-                let (rot, t) = (e.rotation.scaled_axis().map(f64::to_degrees), e.translation);
+                let (rot, t) = (
+                    e.rotation().scaled_axis().map(f64::to_degrees),
+                    e.translation(),
+                );
                 outln!(
                     "feature     {:?} model, {} + {} keypoints, {} matches, {} inliers ({:.0}%)",
                     e.model,
                     f.features[0].len(),
                     f.features[1].len(),
                     f.matches.len(),
-                    e.inlier_count,
-                    100.0 * e.inlier_count as f64 / f.matches.len().max(1) as f64
+                    e.inlier_count(),
+                    100.0 * e.inlier_count() as f64 / f.matches.len().max(1) as f64
                 );
                 outln!("            rotation vector {:+.3} {:+.3} {:+.3} deg, translation direction {:+.3} {:+.3} {:+.3}",
                     rot.x, rot.y, rot.z, t.x, t.y, t.z);
@@ -177,8 +180,8 @@ pub fn write_pictures(dir: &Path, inputs: &Inputs, outcome: &Outcome) -> Result<
             format!(
                 "{} matches, {} inliers (green), {} outliers (red); model: {:?}",
                 f.matches.len(),
-                e.inlier_count,
-                f.matches.len() - e.inlier_count,
+                e.inlier_count(),
+                f.matches.len() - e.inlier_count(),
                 e.model
             ),
             format!(

@@ -75,10 +75,11 @@ pub(super) fn initialise(
             rel.parallax_deg
         )));
     }
-    if rel.triangulated < rules.min_points {
+    if rel.triangulated() < rules.min_points {
         return Err(wait(format!(
             "initialising: {} points triangulated, {} needed",
-            rel.triangulated, rules.min_points
+            rel.triangulated(),
+            rules.min_points
         )));
     }
     let mut map = LocalMap::default();
@@ -90,8 +91,8 @@ pub(super) fn initialise(
         }
     }
     let quality = FrameQuality {
-        inliers: rel.inlier_count,
-        inlier_ratio: rel.inlier_count as f64 / matches.len().max(1) as f64,
+        inliers: rel.inlier_count(),
+        inlier_ratio: rel.inlier_count() as f64 / matches.len().max(1) as f64,
         keyframe: true,
         ..FrameQuality::default()
     };

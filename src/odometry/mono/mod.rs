@@ -241,7 +241,8 @@ impl MonoTracker {
                 }
                 self.motion.reset_velocity();
                 let quality = FrameQuality::default();
-                return Self::estimate(predicted, TrackStatus::Lost, quality, Some(why), start);
+                let why = Some(why.to_string());
+                return Self::estimate(predicted, TrackStatus::Lost, quality, why, start);
             }
         };
         let t_wc = fit.pose.inverse();

@@ -43,7 +43,8 @@ const MIN_VALID: usize = 64;
 /// Settings of [`align_se3`].
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Se3Config {
-    /// Pyramid levels (fewer on small images), at least 1.
+    /// Pyramid levels as factor-2 octaves (each level half the size of the one below; ORB's 1.2-ratio levels are
+    /// `OrbConfig::scale_levels`), fewer on small images, at least 1.
     pub levels: usize,
     /// About this many reference pixels per level (fewer when the level is small).
     pub pixel_budget: usize,

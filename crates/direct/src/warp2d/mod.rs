@@ -71,7 +71,8 @@ pub enum TranslationMethod {
 /// Settings shared by every 2D aligner.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct WarpConfig {
-    /// Pyramid levels (fewer when the image is small), at least 1.
+    /// Pyramid levels as factor-2 octaves (each level half the size of the one below; ORB's 1.2-ratio levels are
+    /// `OrbConfig::scale_levels`), fewer when the image is small, at least 1.
     pub levels: usize,
     /// Iteration limit per level.
     pub max_iterations: usize,

@@ -162,10 +162,9 @@ pub struct BundleReport {
 fn validate(problem: &BundleProblem, cfg: &BundleConfig) -> Result<(), GeometryError> {
     problem.camera.validate()?;
     if cfg.fixed_poses == 0 || cfg.fixed_poses > problem.poses.len() {
-        return Err(GeometryError::InvalidConfig(format!(
-            "fixed_poses must be in 1..={} (the gauge needs a fixed keyframe)",
-            problem.poses.len()
-        )));
+        return Err(GeometryError::InvalidConfig(
+            "fixed_poses must be in 1..=keyframes (the gauge needs a fixed keyframe)",
+        ));
     }
     let positive = |v: f64| v.is_finite() && v > 0.0;
     if !(positive(cfg.sigma_px) && positive(cfg.gate_chi2) && positive(cfg.min_sigma_px))
@@ -173,20 +172,18 @@ fn validate(problem: &BundleProblem, cfg: &BundleConfig) -> Result<(), GeometryE
         || cfg.max_iterations == 0
     {
         return Err(GeometryError::InvalidConfig(
-            "sigma_px, gate_chi2, min_sigma_px, max_rounds and max_iterations must be positive"
-                .into(),
+            "sigma_px, gate_chi2, min_sigma_px, max_rounds and max_iterations must be positive",
         ));
     }
     let (n_poses, n_points) = (problem.poses.len(), problem.points.len());
-    if let Some(o) = problem
+    if problem
         .observations
         .iter()
-        .find(|o| o.pose >= n_poses || o.point >= n_points)
+        .any(|o| o.pose >= n_poses || o.point >= n_points)
     {
-        return Err(GeometryError::InvalidConfig(format!(
-            "observation of point {} from keyframe {} is out of range ({n_points} points, {n_poses} keyframes)",
-            o.point, o.pose
-        )));
+        return Err(GeometryError::InvalidConfig(
+            "an observation's point or keyframe index is out of range",
+        ));
     }
     let finite_poses = problem
         .poses

@@ -7,11 +7,12 @@
 mod decompose;
 mod eight_point;
 mod five_point;
-mod sampson;
 
+/// The Sampson error and the per-image epipolar distances, from [`crate::residual`] (their
+/// one implementation).
+pub use crate::residual::{epipolar_distances_sq, sampson_sq as sampson_error_sq};
 pub use decompose::{
     decompose_essential, recover_pose, select_by_chirality, PoseRecovery, RecoverConfig,
 };
 pub use eight_point::{essential_8pt, project_to_essential};
 pub use five_point::essential_5pt;
-pub use sampson::{epipolar_distances_sq, sampson_error_sq};

@@ -11,7 +11,7 @@ use nalgebra::{Matrix5, SMatrix};
 use vofront_robust::quality::{block_rows, log10_nfa, rms_of};
 use vofront_robust::{Quality, QualityConfig, Reason, Support, Uncertainty};
 
-use super::estimators::Correspondences;
+use super::correspondences::Correspondences;
 
 /// Re-paired correspondences measured for `p0` (about; at most `n - 1` shifts of `n` pairs).
 const CHANCE_SAMPLES: usize = 20_000;

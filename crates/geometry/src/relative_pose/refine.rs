@@ -5,13 +5,17 @@
 //! `R <- exp(phi) R`, `t <- normalize(t + a b1 + b b2)` with `(b1, b2)` an orthonormal basis
 //! of the tangent plane at `t`. Residual of correspondence `i`: the signed Sampson distance in
 //! pixels, `f x2^T E x1 / sqrt((E x1)_1^2 + (E x1)_2^2 + (E^T x2)_1^2 + (E^T x2)_2^2)` with
-//! `E = [t]_x R`; analytic Jacobians.
+//! `E = [t]_x R` ([`crate::residual::Epipolar`]); analytic Jacobians. A correspondence with a
+//! degenerate denominator is an outlier (no row), as everywhere in [`crate::residual`].
 
 use nalgebra::{Matrix3, Matrix5, Rotation3, SVector, Vector3};
-use vofront_robust::{irls, Convergence, IrlsConfig, LmConfig, Loss, Problem, Rows, ScaleMode};
+use vofront_robust::{
+    irls, Convergence, IrlsConfig, LmConfig, Loss, NormalEquations, Problem, Rows, ScaleMode,
+};
 
-use super::estimators::Correspondences;
+use super::correspondences::Correspondences;
 use crate::lie::{hat, so3_exp};
+use crate::residual::row_major;
 
 /// Orthonormal basis `(b1, b2)` of the plane orthogonal to the unit vector `t`.
 pub fn tangent_basis(t: &Vector3<f64>) -> (Vector3<f64>, Vector3<f64>) {
@@ -52,28 +56,23 @@ impl Problem<5> for SampsonProblem<'_> {
             hat(&b1) * r,
             hat(&b2) * r,
         ];
+        let e_rm = row_major(&e);
         for &i in self.indices {
-            let x1 = self.data.ray1(i);
-            let x2 = self.data.ray2(i);
-            let l2 = e * x1;
-            let l1 = e.transpose() * x2;
-            let c = x2.dot(&l2);
-            let d = l2.x * l2.x + l2.y * l2.y + l1.x * l1.x + l1.y * l1.y;
-            if d.is_nan() || d <= 0.0 {
+            let ep = self.data.epipolar(&e_rm, i);
+            if !ep.is_regular() {
                 continue;
             }
+            let (x1, x2) = (self.data.ray1(i), self.data.ray2(i));
+            let ([l2x, l2y], [l1x, l1y], c, d) = (ep.l2, ep.l1, ep.c, ep.d);
             let inv_sqrt = 1.0 / d.sqrt();
             let res = self.focal * c * inv_sqrt;
-            if !res.is_finite() {
-                continue;
-            }
             // r = f c / sqrt(d): dr = f / sqrt(d) (dc - c dd / (2 d)).
             let half_c_over_d = 0.5 * c / d;
             let j = SVector::<f64, 5>::from_fn(|k, _| {
                 let gx1 = g[k] * x1;
                 let gtx2 = g[k].transpose() * x2;
                 let dc = x2.dot(&gx1);
-                let dd = 2.0 * (l2.x * gx1.x + l2.y * gx1.y + l1.x * gtx2.x + l1.y * gtx2.y);
+                let dd = 2.0 * (l2x * gx1.x + l2y * gx1.y + l1x * gtx2.x + l1y * gtx2.y);
                 self.focal * inv_sqrt * (dc - half_c_over_d * dd)
             });
             rows.push(j, res);
@@ -106,14 +105,15 @@ pub struct RelRefinement {
 }
 
 /// Gauss-Newton information `J^T J` of the Sampson distances (pixels) of `indices` at
-/// `state`, in the increment `delta = (phi, a, b)` of [`refine_relative_pose`]; the covariance
-/// of the estimate is `sigma_px^2 (J^T J)^-1`.
+/// `state`, in the increment `delta = (phi, a, b)` of [`refine_relative_pose`]: the Hessian
+/// [`RelRefinement::hessian`] with unit weights, from the same rows and the same accumulator
+/// ([`NormalEquations`]). The covariance of the estimate is `sigma_px^2 (J^T J)^-1`.
 pub fn sampson_information(
     data: &Correspondences,
     indices: &[usize],
     focal: f64,
     state: &RelState,
-) -> nalgebra::SMatrix<f64, 5, 5> {
+) -> Matrix5<f64> {
     let mut problem = SampsonProblem {
         data,
         indices,
@@ -121,7 +121,11 @@ pub fn sampson_information(
     };
     let mut rows = Rows::default();
     problem.evaluate(state, &mut rows);
-    rows.jacobians.iter().map(|j| j * j.transpose()).sum()
+    let mut normal = NormalEquations::<5>::new();
+    for (j, &r) in rows.jacobians.iter().zip(&rows.residuals) {
+        normal.add(j, r, 1.0);
+    }
+    normal.hessian()
 }
 
 /// Refines `(R, t)` on the correspondences `indices` with `loss` on the Sampson distance in
@@ -199,20 +203,6 @@ impl Default for MlRefineConfig {
     }
 }
 
-/// Signed Sampson distance (pixels) of correspondence `i` under `E`.
-fn sampson_px(data: &Correspondences, e: &Matrix3<f64>, focal: f64, i: usize) -> f64 {
-    let x1 = data.ray1(i);
-    let x2 = data.ray2(i);
-    let l2 = e * x1;
-    let l1 = e.transpose() * x2;
-    let d = l2.x * l2.x + l2.y * l2.y + l1.x * l1.x + l1.y * l1.y;
-    if d > 0.0 {
-        focal * x2.dot(&l2) / d.sqrt()
-    } else {
-        f64::INFINITY
-    }
-}
-
 /// Maximum-likelihood refit of `(R, t)` with a noise scale estimated from the data.
 ///
 /// Alternates: residuals `r_i` (Sampson, pixels) of all correspondences; the gated set
@@ -232,9 +222,10 @@ pub fn refine_maximum_likelihood(
     let mut previous: Vec<usize> = Vec::new();
     let mut gated: Vec<f64> = Vec::with_capacity(data.len());
     for _ in 0..cfg.max_rounds {
-        let e = hat(&state.1) * state.0.matrix();
+        let e = row_major(&(hat(&state.1) * state.0.matrix()));
+        // Signed Sampson distances in pixels (infinite, so never gated in, when degenerate).
         let residuals: Vec<f64> = (0..data.len())
-            .map(|i| sampson_px(data, &e, focal, i))
+            .map(|i| focal * data.epipolar(&e, i).sampson())
             .collect();
         // Scale from the residuals inside the current gate, then the gate of that scale.
         gated.clear();

@@ -1,0 +1,133 @@
+//! The settings and the result of [`super::estimate_relative_pose`]. A leaf module.
+
+use nalgebra::{Isometry3, Point3, Rotation3, Translation3, UnitQuaternion, Vector3};
+use vofront_robust::{Quality, QualityConfig};
+
+use crate::ransac::RansacConfig;
+
+/// Settings of [`super::estimate_relative_pose`].
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct RelativePoseConfig {
+    /// RANSAC settings of both models; `ransac.threshold` is the inlier threshold on the
+    /// Sampson distance in pixels (the homography's transfer threshold is derived from it),
+    /// `ransac.max_iterations` caps each model, and results are reproducible for a given
+    /// `ransac.seed`.
+    pub ransac: RansacConfig,
+    /// Nonlinear refinement of `(R, t)` on the inliers.
+    pub refine: bool,
+    /// Median parallax (degrees) below which `low_parallax` flags the translation direction as
+    /// poorly determined.
+    pub min_parallax_deg: f64,
+    /// `S_H / (S_H + S_E)` above which the homography is used.
+    pub homography_ratio: f64,
+    /// Points farther than this many baselines are not counted by the chirality test.
+    pub far_distance: f64,
+    /// Minimum support of an `ok` pose ([`RelativePose::quality`]).
+    pub quality: QualityConfig,
+}
+
+impl Default for RelativePoseConfig {
+    fn default() -> Self {
+        Self {
+            ransac: RansacConfig::default(),
+            refine: true,
+            min_parallax_deg: 1.0,
+            homography_ratio: 0.45,
+            far_distance: 50.0,
+            quality: QualityConfig::default(),
+        }
+    }
+}
+
+/// Which model produced the pose.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Model {
+    /// The essential matrix (general scene).
+    Essential,
+    /// The homography (planar scene or pure rotation).
+    Homography,
+}
+
+/// Relative pose `T_21` between two views: the pose, the model it comes from, the inlier set
+/// with its triangulated points, the flags and the quality record (each stored once; the
+/// rotation, translation and counts are accessors).
+#[derive(Debug, Clone, PartialEq)]
+pub struct RelativePose {
+    /// `T_21 = (R_21, t_21)`, unit translation direction `t_21` (zero for a pure rotation).
+    pub pose: Isometry3<f64>,
+    /// Model used.
+    pub model: Model,
+    /// Per input correspondence: consistent with the final pose (Sampson distance under the
+    /// threshold; for a pure rotation, transfer error under the threshold).
+    pub inliers: Vec<bool>,
+    /// Per input correspondence: the triangulated point in camera 1, in baseline units, for
+    /// inliers in front of both cameras and closer than the far limit.
+    pub points: Vec<Option<Point3<f64>>>,
+    /// Median parallax angle of the triangulated points, degrees.
+    pub parallax_deg: f64,
+    /// Median parallax under `min_parallax_deg` (or a pure rotation): the translation direction
+    /// is poorly determined.
+    pub low_parallax: bool,
+    /// A rotation alone explains the correspondences: the translation is reported as zero and
+    /// the rotation is the least-squares rotation of the rays.
+    pub pure_rotation: bool,
+    /// Two motions explain the data about equally (planar two-fold ambiguity).
+    pub ambiguous: bool,
+    /// The other motion when `ambiguous`.
+    pub alternative: Option<Isometry3<f64>>,
+    /// `S_H / (S_H + S_E)`.
+    pub homography_score_ratio: f64,
+    /// RANSAC iterations of the two models.
+    pub iterations: RansacIterations,
+    /// Verdict, reasons, support (with the a-contrario chance test), Sampson noise scale and
+    /// the covariance of the rotation and of the translation direction; `iterations` there is
+    /// the RANSAC total and `converged` is always true (the refit stops at a stable inlier set
+    /// or its round limit).
+    pub quality: Quality,
+}
+
+impl RelativePose {
+    /// `R_21`.
+    pub fn rotation(&self) -> UnitQuaternion<f64> {
+        self.pose.rotation
+    }
+
+    /// Unit translation direction `t_21`, zero for a pure rotation.
+    pub fn translation(&self) -> Vector3<f64> {
+        self.pose.translation.vector
+    }
+
+    /// Number of `true` in [`Self::inliers`].
+    pub fn inlier_count(&self) -> usize {
+        self.inliers.iter().filter(|&&b| b).count()
+    }
+
+    /// Number of `Some` in [`Self::points`].
+    pub fn triangulated(&self) -> usize {
+        self.points.iter().filter(|p| p.is_some()).count()
+    }
+}
+
+/// RANSAC iterations of the two models fitted by [`super::estimate_relative_pose`].
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub struct RansacIterations {
+    /// Iterations of the essential matrix's LO-MSAC.
+    pub essential: usize,
+    /// Iterations of the homography's LO-MSAC.
+    pub homography: usize,
+}
+
+impl RansacIterations {
+    /// Both together.
+    pub fn total(&self) -> usize {
+        self.essential + self.homography
+    }
+}
+
+/// `T_21` from a rotation and a translation.
+pub(super) fn isometry(r: &Rotation3<f64>, t: &Vector3<f64>) -> Isometry3<f64> {
+    Isometry3::from_parts(
+        Translation3::from(*t),
+        UnitQuaternion::from_rotation_matrix(r),
+    )
+}
