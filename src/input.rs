@@ -3,11 +3,11 @@
 
 use std::path::{Path, PathBuf};
 
-use image::{GrayImage, ImageBuffer, Luma};
+use image::GrayImage;
 use thiserror::Error;
 
-/// A metric depth map: metres per pixel, 0 where unknown.
-pub type DepthMap = ImageBuffer<Luma<f32>, Vec<f32>>;
+/// A metric depth map: metres per pixel, 0 where unknown (the image crate's float image).
+pub use vofront_image::GrayF32 as DepthMap;
 
 /// A file could not be used.
 #[derive(Debug, Error)]
@@ -142,6 +142,7 @@ pub fn load_correspondences(path: &Path) -> Result<Correspondences, InputError> 
 #[cfg(test)]
 mod tests {
     use super::*;
+    use image::{ImageBuffer, Luma};
 
     #[test]
     fn depth_is_divided_by_the_scale_as_stored_in_8_and_16_bits() {

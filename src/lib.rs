@@ -24,4 +24,5 @@ pub use vofront_direct as direct;
 pub use vofront_features as features;
 pub use vofront_fixtures as fixtures;
 pub use vofront_geometry as geometry;
+pub use vofront_image as image;
 pub use vofront_robust as robust;

@@ -40,15 +40,16 @@ pub mod tum;
 use std::io;
 use std::path::{Path, PathBuf};
 
-use image::{DynamicImage, GrayImage, ImageBuffer, Luma};
+use image::{DynamicImage, GrayImage};
 use nalgebra::Isometry3;
 use thiserror::Error;
 use vofront_geometry::camera::{Camera, CameraError};
 
 use crate::trajectory::{Trajectory, TrajectoryError};
 
-/// Metric depth image: metres, `0.0` where the sensor gave no depth.
-pub type DepthImage = ImageBuffer<Luma<f32>, Vec<f32>>;
+/// Metric depth image: metres, `0.0` where the sensor gave no depth (the image crate's float
+/// image).
+pub use vofront_image::GrayF32 as DepthImage;
 
 /// Errors of dataset opening and frame loading.
 #[derive(Debug, Error)]

@@ -8,10 +8,11 @@
 //! outside `Se3Config::max_gain`: a flat image can be "explained" by `a = 0`) or when too few
 //! residuals are inliers.
 
+use std::sync::Arc;
 use std::time::Instant;
 
 use nalgebra::Isometry3;
-use vofront_direct::{Plane, RgbdFrame, Se3Config, Se3Reference};
+use vofront_direct::{DirectError, Plane, RgbdFrame, Se3Config, Se3Reference, Undistorter};
 use vofront_geometry::Camera;
 
 use super::keyframe::{KeyframePolicy, KeyframeView};
@@ -52,6 +53,9 @@ struct Keyframe {
 pub struct DirectTracker {
     cfg: DirectTrackerConfig,
     camera: Camera,
+    /// The camera's undistortion remap, built at the first frame's size and reused for every
+    /// keyframe (`None` without lens distortion).
+    undistorter: Option<Arc<Undistorter>>,
     slot: KeyframeSlot<Keyframe>,
 }
 
@@ -71,20 +75,22 @@ impl DirectTracker {
         Self {
             cfg,
             camera,
+            undistorter: None,
             slot: KeyframeSlot::default(),
         }
     }
 
     /// A keyframe from a frame's grey `image` (already a plane) and its depth, at `t_wc`.
     fn make_keyframe(
-        &self,
+        &mut self,
         frame: &Frame,
         image: Plane,
         t_wc: Isometry3<f64>,
     ) -> Result<Keyframe, VoError> {
         let depth = frame.depth.as_ref().ok_or(VoError::NoDepth)?;
         let depth = Plane::from_gray_f32(depth);
-        let rgbd = RgbdFrame::new(image, depth, &self.camera)?;
+        let undistorter = self.undistorter_for(image.size())?;
+        let rgbd = RgbdFrame::with_undistorter(image, depth, self.camera.pinhole, undistorter)?;
         let reference = Se3Reference::new(&rgbd, &self.cfg.se3)?;
         let selected = reference.selected().first().copied().unwrap_or(0);
         Ok(Keyframe {
@@ -94,6 +100,28 @@ impl DirectTracker {
             selected,
             first_residual: None,
         })
+    }
+}
+
+impl DirectTracker {
+    /// The undistortion remap for `(width, height)` images: built once, rebuilt only if the
+    /// image size changes; `None` for a camera without distortion (validated here instead).
+    fn undistorter_for(
+        &mut self,
+        (width, height): (usize, usize),
+    ) -> Result<Option<Arc<Undistorter>>, VoError> {
+        if self.camera.distortion.is_identity() {
+            self.camera.validate().map_err(DirectError::from)?;
+            return Ok(None);
+        }
+        match &self.undistorter {
+            Some(u) if u.size() == (width, height) => {}
+            _ => {
+                let u = Undistorter::new(&self.camera, width, height)?;
+                self.undistorter = Some(Arc::new(u));
+            }
+        }
+        Ok(self.undistorter.clone())
     }
 }
 

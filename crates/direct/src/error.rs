@@ -2,6 +2,7 @@
 
 use thiserror::Error;
 use vofront_geometry::CameraError;
+use vofront_image::ImageError;
 use vofront_robust::SolveError;
 
 /// Everything the direct aligners and the KLT tracker refuse to do.
@@ -72,7 +73,30 @@ pub enum DirectError {
         /// The accepted bound.
         max_gain: f64,
     },
+    /// Any other failure of an image operation.
+    #[error(transparent)]
+    Image(ImageError),
     /// An input value (pose, brightness) is NaN or infinite.
     #[error("input contains NaN or infinite values")]
     NotFinite,
+}
+
+impl From<ImageError> for DirectError {
+    /// The image crate's failures under the direct methods' names (the variants they had before
+    /// the image type moved), so that callers keep matching the same errors.
+    fn from(e: ImageError) -> Self {
+        match e {
+            ImageError::BadBuffer { len, width, height } => {
+                DirectError::BadBuffer { len, width, height }
+            }
+            ImageError::SizeMismatch { expected, found } => {
+                DirectError::SizeMismatch { expected, found }
+            }
+            ImageError::ImageTooSmall { width, height, min } => {
+                DirectError::ImageTooSmall { width, height, min }
+            }
+            ImageError::InvalidConfig(what) => DirectError::InvalidConfig(what),
+            other => DirectError::Image(other),
+        }
+    }
 }

@@ -1,13 +1,14 @@
 //! Direct photometric alignment and sparse optical flow.
 //!
-//! - [`plane`]: `f32` image planes, pyramids (`[1 4 6 4 1]/16` then decimation), gradients,
-//!   bilinear sampling;
+//! - [`plane`]: [`Plane`], the image crate's `f32` image (`vofront_image`: pyramids, gradients,
+//!   bilinear sampling, remap);
 //! - [`translation`]: robust coarse-to-fine 2D translation `I2(x + d) = I1(x)`;
 //! - [`warp2d`]: affine and homography Lucas-Kanade with optional brightness `a I + b`;
 //! - [`rgbd`]: reference frames (grey image + metric depth), undistortion, pixel selection;
 //! - [`se3`]: SE(3) direct image alignment `I_cur(pi(K T_cur_ref pi^-1(p, d))) = a I_ref(p) + b`,
 //!   from a dense RGB-D reference or from given pixels with inverse depths;
-//! - [`klt`]: Shi-Tomasi corners and pyramidal Lucas-Kanade tracking.
+//!
+//! Shi-Tomasi corners and pyramidal KLT live in `vofront_image` and are re-exported here.
 //!
 //! Every aligner runs a robust (Huber or Student-t with MAD scale) Levenberg-Marquardt loop
 //! (module `lm`) whose normal equations are accumulated in parallel with rayon, and returns typed
@@ -30,7 +31,6 @@
 #![warn(missing_docs)]
 
 pub mod error;
-pub mod klt;
 mod lm;
 pub mod plane;
 pub mod quality;
@@ -40,13 +40,13 @@ pub mod translation;
 pub mod warp2d;
 
 pub use error::DirectError;
-pub use klt::{good_features_to_track, track_klt, KltConfig, KltTrack, TrackStatus};
 pub use plane::{Gradients, Plane, Pyramid};
 pub use rgbd::{RgbdFrame, Undistorter};
 pub use se3::{
     align_se3, photometric_residual_map, InverseDepthPoint, Se3Config, Se3Reference, Se3Result,
 };
 pub use translation::{align_translation, TranslationConfig, TranslationResult};
+pub use vofront_image::{good_features_to_track, track_klt, KltConfig, KltTrack, TrackStatus};
 pub use warp2d::{
     align_affine, align_homography, TranslationMethod, WarpConfig, WarpKind, WarpResult,
 };

@@ -9,125 +9,44 @@
 use std::borrow::Cow;
 use std::sync::Arc;
 
-use nalgebra::Vector2;
-use rayon::prelude::*;
-use vofront_geometry::{Camera, Pinhole};
+use vofront_geometry::{Camera, Pinhole, UndistortMap};
+use vofront_image::Remap;
 
 use crate::error::DirectError;
-use crate::plane::{Bilinear, Plane};
+use crate::plane::Plane;
 
 /// Smallest image side accepted for an RGB-D frame, pixels.
 pub const MIN_RGBD_SIDE: usize = 16;
 
-/// Output pixels per parallel task of a remap.
-const REMAP_BLOCK: usize = 32 * 1024;
-
-/// The undistortion remap of one camera at one image size.
+/// The undistortion remap of one camera at one image size: the map `u -> K D(K^-1 u)`
+/// (`vofront_geometry::UndistortMap`, same intrinsics `K`) applied by the image crate's
+/// [`Remap`]. Build it once per camera and image size and share it (`Arc`).
 #[derive(Debug, Clone, PartialEq)]
 pub struct Undistorter {
-    /// Image width, pixels.
-    width: usize,
-    /// Image height, pixels.
-    height: usize,
-    /// Bilinear taps of every output pixel: top-left index (`u32::MAX` outside) and fractions.
-    taps: Vec<(u32, f32, f32)>,
+    remap: Remap,
 }
 
 impl Undistorter {
     /// The map `u -> K D(K^-1 u)` for a `width x height` image of `camera`.
     pub fn new(camera: &Camera, width: usize, height: usize) -> Result<Self, DirectError> {
-        camera.validate()?;
-        let mut map_x = vec![0f32; width * height];
-        let mut map_y = vec![0f32; width * height];
-        map_x
-            .par_chunks_mut(width.max(1))
-            .zip(map_y.par_chunks_mut(width.max(1)))
-            .enumerate()
-            .for_each(|(y, (mx, my))| {
-                for (x, (ox, oy)) in mx.iter_mut().zip(my.iter_mut()).enumerate() {
-                    let n = camera
-                        .pinhole
-                        .to_normalized(&Vector2::new(x as f64, y as f64));
-                    let src = camera.normalized_to_pixel(&n);
-                    *ox = src.x as f32;
-                    *oy = src.y as f32;
-                }
-            });
-        let taps = map_x
-            .par_iter()
-            .zip(map_y.par_iter())
-            .map(|(&x, &y)| match Bilinear::new(x, y, width, height) {
-                Some(t) => (t.index as u32, t.fx, t.fy),
-                None => (u32::MAX, 0.0, 0.0),
-            })
-            .collect();
-        Ok(Self {
-            width,
-            height,
-            taps,
-        })
+        let map = UndistortMap::new(camera, &camera.pinhole, width, height)?;
+        let remap = Remap::new((width, height), (width, height), &map.map_x, &map.map_y)?;
+        Ok(Self { remap })
     }
 
     /// `(width, height)` of the images this remap applies to, pixels.
     pub fn size(&self) -> (usize, usize) {
-        (self.width, self.height)
-    }
-
-    /// `value(tap)` of every output pixel, in parallel blocks of rows.
-    fn remap<F>(&self, value: F) -> Vec<f32>
-    where
-        F: Fn(&(u32, f32, f32)) -> f32 + Sync,
-    {
-        let mut out = vec![0f32; self.taps.len()];
-        out.par_chunks_mut(REMAP_BLOCK)
-            .zip(self.taps.par_chunks(REMAP_BLOCK))
-            .for_each(|(out, taps)| {
-                for (o, tap) in out.iter_mut().zip(taps) {
-                    *o = value(tap);
-                }
-            });
-        out
-    }
-
-    fn check(&self, img: &Plane) -> Result<(), DirectError> {
-        if img.size() == (self.width, self.height) {
-            Ok(())
-        } else {
-            Err(DirectError::SizeMismatch {
-                expected: (self.width, self.height),
-                found: img.size(),
-            })
-        }
+        self.remap.size()
     }
 
     /// The pinhole image of `img` (bilinear, NaN where the source is outside).
     pub fn undistort_image(&self, img: &Plane) -> Result<Plane, DirectError> {
-        self.check(img)?;
-        let (w, d) = (img.width(), img.data());
-        let data = self.remap(|&(index, fx, fy)| {
-            if index == u32::MAX {
-                return f32::NAN;
-            }
-            let i = index as usize;
-            let top = d[i] + fx * (d[i + 1] - d[i]);
-            let bottom = d[i + w] + fx * (d[i + w + 1] - d[i + w]);
-            top + fy * (bottom - top)
-        });
-        Plane::new(self.width, self.height, data)
+        Ok(self.remap.bilinear(img, f32::NAN)?)
     }
 
     /// The pinhole depth map of `depth` (nearest neighbour, 0 where the source is outside).
     pub fn undistort_depth(&self, depth: &Plane) -> Result<Plane, DirectError> {
-        self.check(depth)?;
-        let (w, d) = (depth.width(), depth.data());
-        let data = self.remap(|&(index, fx, fy)| {
-            if index == u32::MAX {
-                return 0.0;
-            }
-            let i = index as usize + usize::from(fx >= 0.5) + w * usize::from(fy >= 0.5);
-            d[i]
-        });
-        Plane::new(self.width, self.height, data)
+        Ok(self.remap.nearest(depth, 0.0)?)
     }
 }
 

@@ -125,9 +125,9 @@ impl Disc {
 /// least `HALF_PATCH + 1` px inside the image (rows are read 16 px left and 15 px right).
 #[inline(always)]
 pub(crate) fn orientation(img: &Plane, x: usize, y: usize, disc: &Disc) -> f32 {
-    let w = img.width;
+    let w = img.width();
     let row = |start: usize| -> [i32; DISC_ROW] {
-        let s: &[u8; DISC_ROW] = img.data[start..start + DISC_ROW]
+        let s: &[u8; DISC_ROW] = img.data()[start..start + DISC_ROW]
             .try_into()
             .expect("DISC_ROW pixels");
         s.map(i32::from)
@@ -155,9 +155,9 @@ pub(crate) fn orientation(img: &Plane, x: usize, y: usize, disc: &Disc) -> f32 {
 /// on the smoothed level image; the keypoint must be at least [`MIN_BORDER`] px inside.
 #[inline(always)]
 pub(crate) fn brief(smoothed: &Plane, x: usize, y: usize, angle: f32) -> Descriptor {
-    let w = smoothed.width as i32;
-    let d = &smoothed.data;
-    let centre = y * smoothed.width + x;
+    let w = smoothed.width() as i32;
+    let d = smoothed.data();
+    let centre = y * smoothed.width() + x;
     let (s, c) = angle.sin_cos();
     let pattern = pattern_points();
     // Rounded rotated offsets of all 512 points as index offsets, in one vectorizable pass.
@@ -249,7 +249,7 @@ mod tests {
             for dv in -15i64..=15 {
                 let half = u[dv.unsigned_abs() as usize] as i64;
                 for du in -half..=half {
-                    let p = img.data[(y as i64 + dv) as usize * w + (x as i64 + du) as usize];
+                    let p = img.data()[(y as i64 + dv) as usize * w + (x as i64 + du) as usize];
                     m10 += du * p as i64;
                     m01 += dv * p as i64;
                 }
@@ -286,11 +286,7 @@ mod tests {
                     (100 + 5 * (dx * x + dy * y)) as u8
                 })
                 .collect();
-            let img = Plane {
-                width: w,
-                height: w,
-                data,
-            };
+            let img = Plane::new(w, w, data).unwrap();
             let a = orientation(&img, 20, 20, &Disc::new(&umax())).to_degrees();
             let diff = (a - want + 540.0).rem_euclid(360.0) - 180.0;
             assert!(diff.abs() < 0.5, "{a} vs {want}");

@@ -266,8 +266,8 @@ fn detect_into_generic(
     scores: &mut [u16],
     corners: &mut Vec<usize>,
 ) {
-    let w = img.width;
-    let data = &img.data;
+    let w = img.width();
+    let data = img.data();
     let offsets = circle_offsets(w);
     let n = region.x1.saturating_sub(region.x0);
     if n == 0 {
@@ -330,8 +330,8 @@ pub(crate) fn detect(img: &Plane, region: Rect, threshold: u8, min_threshold: u8
     if region.x1 <= region.x0 || region.y1 <= region.y0 {
         return Vec::new();
     }
-    let w = img.width;
-    let mut scores = vec![0u16; w * img.height];
+    let w = img.width();
+    let mut scores = vec![0u16; w * img.height()];
     let mut corners = Vec::new();
     detect_into(img, region, threshold, &mut scores, &mut corners);
     if min_threshold < threshold {
@@ -402,11 +402,7 @@ mod tests {
                 }
             })
             .collect();
-        Plane {
-            width: w,
-            height: w,
-            data,
-        }
+        Plane::new(w, w, data).unwrap()
     }
 
     #[test]
@@ -433,12 +429,8 @@ mod tests {
     fn threshold_and_score_follow_contrast() {
         // A single bright pixel of contrast 50 on a flat background: a corner below
         // threshold 50 only, scored 16 * 50 (all circle pixels darker by 50).
-        let mut img = Plane {
-            width: 9,
-            height: 9,
-            data: vec![100; 81],
-        };
-        img.data[40] = 150;
+        let mut img = Plane::new(9, 9, vec![100; 81]).unwrap();
+        img.data_mut()[40] = 150;
         let region = Rect {
             x0: 4,
             y0: 4,
@@ -465,11 +457,7 @@ mod tests {
                 (s >> 24) as u8
             })
             .collect();
-        let img = Plane {
-            width: w,
-            height: h,
-            data,
-        };
+        let img = Plane::new(w, h, data).unwrap();
         let region = Rect {
             x0: 3,
             y0: 3,
@@ -520,17 +508,13 @@ mod tests {
     #[test]
     fn an_arc_of_8_is_not_a_corner_but_9_is() {
         for (arc, want) in [(8usize, false), (9, true)] {
-            let mut img = Plane {
-                width: 9,
-                height: 9,
-                data: vec![100; 81],
-            };
+            let mut img = Plane::new(9, 9, vec![100; 81]).unwrap();
             for &(dx, dy) in CIRCLE.iter().cycle().skip(5).take(arc) {
-                img.data[((4 + dy) * 9 + 4 + dx) as usize] = 200;
+                img.data_mut()[((4 + dy) * 9 + 4 + dx) as usize] = 200;
             }
             let offsets = circle_offsets(9);
             assert_eq!(
-                corner_score(&img.data, 40, &offsets, 20).is_some(),
+                corner_score(img.data(), 40, &offsets, 20).is_some(),
                 want,
                 "{arc}"
             );

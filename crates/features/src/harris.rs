@@ -45,12 +45,12 @@ unsafe fn responses_avx2(img: &Plane, corners: &[Corner]) -> Vec<f32> {
 #[target_feature(enable = "avx2")]
 unsafe fn response_avx2(img: &Plane, x: usize, y: usize) -> f32 {
     use std::arch::x86_64::*;
-    let w = img.width;
+    let w = img.width();
     // Every read is 8 bytes at row r in y - 4..=y + 4, column x - 4 + dx, dx in 0..=2: the
     // window below covers them all, so one bounds check guards the raw loads.
     let first = (y - HALF_BLOCK - 1) * w + x - HALF_BLOCK - 1;
     let last = (y + HALF_BLOCK + 1) * w + x - HALF_BLOCK - 1 + 2 + LANES;
-    let win = &img.data[first..last];
+    let win = &img.data()[first..last];
     let taps = |row: usize, dx: usize| -> __m256i {
         let off = row * w + dx;
         debug_assert!(off + LANES <= win.len());
@@ -105,8 +105,8 @@ fn responses_generic(img: &Plane, corners: &[Corner]) -> Vec<f32> {
 /// unused eighth lane reads one pixel further right).
 #[inline(always)]
 pub(crate) fn response(img: &Plane, x: usize, y: usize) -> f32 {
-    let w = img.width;
-    let d = &img.data;
+    let w = img.width();
+    let d = img.data();
     // Lane i is block column xx = x - HALF_BLOCK + i; `taps(r, dx)` holds I(xx + dx, r).
     let taps = |r: usize, dx: usize| -> [i32; LANES] {
         let start = r * w + x + dx - HALF_BLOCK - 1;
@@ -148,7 +148,7 @@ mod tests {
 
     /// The response straight from the definition: Sobel gradients pixel by pixel.
     fn reference(img: &Plane, x: usize, y: usize) -> f32 {
-        let p = |x: usize, y: usize| img.data[y * img.width + x] as f64;
+        let p = |x: usize, y: usize| img.data()[y * img.width() + x] as f64;
         let (mut a, mut b, mut c) = (0.0, 0.0, 0.0);
         for yy in y - HALF_BLOCK..=y + HALF_BLOCK {
             for xx in x - HALF_BLOCK..=x + HALF_BLOCK {
@@ -192,12 +192,15 @@ mod tests {
     #[test]
     fn corner_beats_edge_beats_flat() {
         let w = 30;
-        let img = |f: &dyn Fn(usize, usize) -> bool| Plane {
-            width: w,
-            height: w,
-            data: (0..w * w)
-                .map(|i| if f(i % w, i / w) { 200 } else { 30 })
-                .collect(),
+        let img = |f: &dyn Fn(usize, usize) -> bool| {
+            Plane::new(
+                w,
+                w,
+                (0..w * w)
+                    .map(|i| if f(i % w, i / w) { 200 } else { 30 })
+                    .collect(),
+            )
+            .unwrap()
         };
         let corner = img(&|x, y| x >= 15 && y >= 15);
         let edge = img(&|x, _| x >= 15);

@@ -176,11 +176,7 @@ impl Orb {
             return Ok(Features::default());
         }
         let base = Level {
-            image: Plane {
-                width: w,
-                height: h,
-                data: image.as_raw().clone(),
-            },
+            image: Plane::from_gray(image),
             scale: 1.0,
             ratio: (1.0, 1.0),
         };
@@ -207,7 +203,7 @@ impl Orb {
             std::iter::once(first).chain(detected_above).collect();
         let areas: Vec<usize> = levels
             .iter()
-            .map(|l| l.image.width * l.image.height)
+            .map(|l| l.image.width() * l.image.height())
             .collect();
         let available: Vec<usize> = detected.iter().map(|(c, _)| c.len()).collect();
         let budget = allocate(cfg.n_features, &areas, &available);
@@ -246,8 +242,8 @@ impl Orb {
         let region = Rect {
             x0: border,
             y0: border,
-            x1: img.width - border,
-            y1: img.height - border,
+            x1: img.width() - border,
+            y1: img.height() - border,
         };
         fast::detect(
             img,
@@ -290,8 +286,8 @@ impl Orb {
         let region = (
             border as f32,
             border as f32,
-            (level.image.width - border) as f32,
-            (level.image.height - border) as f32,
+            (level.image.width() - border) as f32,
+            (level.image.height() - border) as f32,
         );
         let keep = distribute(
             &cand.xs,

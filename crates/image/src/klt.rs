@@ -1,22 +1,27 @@
-//! Shi-Tomasi corners and pyramidal Lucas-Kanade (KLT) point tracking.
-//!
-//! Corners: the structure tensor `G = sum_window [gx^2, gx gy; gx gy, gy^2]` over a 3x3 block,
-//! response `lambda_min(G)`, kept when at least `quality` times the strongest response and a
-//! 3x3 local maximum, then greedily by decreasing response at least `min_distance` apart.
+//! Pyramidal Lucas-Kanade (KLT) point tracking.
 //!
 //! Tracking a point `p` from `I` to `J`: at each pyramid level `l`, from the coarsest, the
 //! template `T(w) = I_l(p / 2^l + w)` and its gradients over a `window x window` patch are
 //! sampled once, `G = sum grad T grad T^T`, and the position `q` is refined by
 //! `q <- q - G^-1 sum grad T (J_l(q + w) - T(w))` until the step is below `epsilon` pixels;
-//! the flow is doubled when going one level down. A track fails when `q` leaves the image, when
+//! the flow is doubled when going one level down. The flow starts at zero, or at
+//! `(g - p) / 2^(L-1)` on the coarsest level `L - 1` when an initial position `g` (a
+//! prediction) is given. A track fails when `q` leaves the image, when
 //! `lambda_min(G) / window^2 < min_eigenvalue` (a flat or edge-only window), or when tracking
-//! back from `J` to `I` does not land within `forward_backward` pixels of `p`.
+//! back from `J` to `I` (from `q`, seeded with `p` when the forward track was seeded) does not
+//! land within `forward_backward` pixels of `p`.
+//!
+//! Pyramids are [`KltPyramid`]s: built once per frame and passed to [`track_klt_pyramids`]
+//! (a sequence tracks frame `k` into `k + 1`, then `k + 1` into `k + 2` with the same pyramid);
+//! [`track_klt`] builds both for a single pair.
+
+use std::borrow::Cow;
 
 use nalgebra::Vector2;
 use rayon::prelude::*;
 
-use crate::error::DirectError;
-use crate::plane::Plane;
+use crate::buffer::Image;
+use crate::error::ImageError;
 
 /// Smallest side of a KLT pyramid level, pixels.
 const MIN_LEVEL_SIDE: usize = 8;
@@ -38,6 +43,19 @@ pub struct KltConfig {
     pub min_eigenvalue: f32,
     /// When set, tracks are checked backwards and rejected beyond this distance, pixels.
     pub forward_backward: Option<f32>,
+}
+
+impl KltConfig {
+    /// [`ImageError::InvalidConfig`] unless `window` is odd and at least 3 and `levels` and
+    /// `max_iterations` are positive.
+    pub fn validate(&self) -> Result<(), ImageError> {
+        if self.window < 3 || self.window % 2 == 0 || self.levels == 0 || self.max_iterations == 0 {
+            return Err(ImageError::InvalidConfig(
+                "window must be odd and >= 3, levels and max_iterations positive",
+            ));
+        }
+        Ok(())
+    }
 }
 
 impl Default for KltConfig {
@@ -77,153 +95,68 @@ pub struct KltTrack {
     pub error: f32,
 }
 
-/// Shi-Tomasi corners of `img`: at most `max_corners`, response at least `quality` times the
-/// best, at least `min_distance` pixels apart, strongest first.
+/// The pyramid of one image for KLT, built once and reused for every track into or out of it.
 ///
-/// ```
-/// use vofront_direct::{good_features_to_track, Plane};
-/// let mut img = Plane::filled(40, 40, 0.0);
-/// for y in 10..30 {
-///     for x in 10..30 {
-///         img.data_mut()[y * 40 + x] = 200.0;
-///     }
-/// }
-/// let corners = good_features_to_track(&img, 10, 0.1, 5.0);
-/// assert_eq!(corners.len(), 4);
-/// ```
-pub fn good_features_to_track(
-    img: &Plane,
-    max_corners: usize,
-    quality: f32,
-    min_distance: f32,
-) -> Vec<Vector2<f32>> {
-    let (w, h) = img.size();
-    if w < 5 || h < 5 || max_corners == 0 {
-        return Vec::new();
-    }
-    let response = min_eigenvalue_map(img);
-    let best = response.iter().copied().fold(0.0f32, f32::max);
-    if best <= 0.0 || !best.is_finite() {
-        return Vec::new();
-    }
-    let threshold = quality.max(0.0) * best;
-    let mut candidates = Vec::new();
-    for y in 2..h - 2 {
-        for x in 2..w - 2 {
-            let v = response[y * w + x];
-            if v < threshold || v <= 0.0 {
-                continue;
-            }
-            let is_max =
-                (y - 1..=y + 1).all(|yy| (x - 1..=x + 1).all(|xx| response[yy * w + xx] <= v));
-            if is_max {
-                candidates.push((v, x, y));
-            }
-        }
-    }
-    candidates.sort_by(|a, b| b.0.total_cmp(&a.0));
-    let cell = min_distance.max(1.0);
-    let (gw, gh) = (
-        (w as f32 / cell).ceil() as usize,
-        (h as f32 / cell).ceil() as usize,
-    );
-    let mut grid: Vec<Vec<Vector2<f32>>> = vec![Vec::new(); gw * gh];
-    let mut out = Vec::new();
-    let d2 = min_distance * min_distance;
-    for (_, x, y) in candidates {
-        let p = Vector2::new(x as f32, y as f32);
-        let (cx, cy) = ((p.x / cell) as usize, (p.y / cell) as usize);
-        let near = (cy.saturating_sub(1)..(cy + 2).min(gh)).any(|gy| {
-            (cx.saturating_sub(1)..(cx + 2).min(gw)).any(|gx| {
-                grid[gy * gw + gx]
-                    .iter()
-                    .any(|q| (q - p).norm_squared() < d2)
-            })
-        });
-        if near {
-            continue;
-        }
-        grid[cy * gw + cx].push(p);
-        out.push(p);
-        if out.len() == max_corners {
-            break;
-        }
-    }
-    out
-}
-
-/// `lambda_min` of the 3x3-block structure tensor at every pixel (0 on the border).
-fn min_eigenvalue_map(img: &Plane) -> Vec<f32> {
-    let (w, h) = img.size();
-    let g = img.gradients();
-    let (gx, gy) = (g.gx.data(), g.gy.data());
-    let box3 = |src: Vec<f32>| -> Vec<f32> {
-        let mut horiz = vec![0f32; w * h];
-        for (s, d) in src.chunks_exact(w).zip(horiz.chunks_exact_mut(w)) {
-            for ((o, a), (b, c)) in d[1..w - 1]
-                .iter_mut()
-                .zip(&s[..w - 2])
-                .zip(s[1..w - 1].iter().zip(&s[2..]))
-            {
-                *o = a + b + c;
-            }
-        }
-        let mut out = vec![0f32; w * h];
-        for y in 1..h - 1 {
-            let (a, b, c) = (
-                &horiz[(y - 1) * w..y * w],
-                &horiz[y * w..(y + 1) * w],
-                &horiz[(y + 1) * w..(y + 2) * w],
-            );
-            for (((o, a), b), c) in out[y * w..(y + 1) * w].iter_mut().zip(a).zip(b).zip(c) {
-                *o = a + b + c;
-            }
-        }
-        out
-    };
-    let sxx = box3(gx.iter().map(|a| a * a).collect());
-    let sxy = box3(gx.iter().zip(gy).map(|(a, b)| a * b).collect());
-    let syy = box3(gy.iter().map(|b| b * b).collect());
-    sxx.iter()
-        .zip(&sxy)
-        .zip(&syy)
-        .map(|((&a, &b), &c)| {
-            let half = 0.5 * (a - c);
-            (0.5 * (a + c) - (half * half + b * b).sqrt()).max(0.0)
-        })
-        .collect()
-}
-
-/// An image pyramid whose coarse levels are padded by replicated pixels.
-///
-/// Level `l > 0` is padded by `pad` pixels on each side (level 0 is the caller's image, not
-/// copied), so that windows near the border take the fast sampling path; pixel `(x, y)` of
-/// level `l` is stored at `(x + pad(l), y + pad(l))`.
-struct PaddedPyramid<'a> {
-    base: &'a Plane,
+/// Level 0 is the image itself (borrowed, or owned with [`KltPyramid::from_image`]); each level
+/// `l > 0` is [`Image::pyr_down`] of the one below, padded by `window / 2 + 2` replicated pixels
+/// on each side so that windows near the border take the fast sampling path (pixel `(x, y)` of
+/// level `l > 0` is stored at `(x + pad, y + pad)`). A pyramid serves the [`KltConfig`]s with
+/// its `window` and at most its `levels`; results are identical to building it per call.
+#[derive(Debug, Clone)]
+pub struct KltPyramid<'a> {
+    base: Cow<'a, Image<f32>>,
     /// Levels `1..`, each padded by `pad` pixels on every side.
-    coarse: Vec<Plane>,
+    coarse: Vec<Image<f32>>,
+    /// Window side the padding was chosen for, pixels.
+    window: usize,
+    /// Levels asked for at build time (more than [`KltPyramid::levels`] when the image ran out).
+    requested: usize,
     pad: usize,
 }
 
-impl<'a> PaddedPyramid<'a> {
-    fn new(img: &'a Plane, levels: usize, pad: usize) -> Self {
-        let coarse = img.coarser_levels(levels, MIN_LEVEL_SIDE);
-        Self {
-            base: img,
-            coarse: coarse.iter().map(|level| padded(level, pad)).collect(),
-            pad,
-        }
+impl<'a> KltPyramid<'a> {
+    /// The pyramid of `img` (borrowed) for `cfg.window` and up to `cfg.levels` levels.
+    ///
+    /// Errors: [`ImageError::InvalidConfig`] for a bad `cfg`, [`ImageError::ImageTooSmall`]
+    /// below 8 pixels on a side.
+    pub fn new(img: &'a Image<f32>, cfg: &KltConfig) -> Result<Self, ImageError> {
+        Self::build(Cow::Borrowed(img), cfg)
     }
 
-    fn levels(&self) -> usize {
+    fn build(base: Cow<'a, Image<f32>>, cfg: &KltConfig) -> Result<Self, ImageError> {
+        cfg.validate()?;
+        base.check_min_size(MIN_LEVEL_SIDE)?;
+        let pad = cfg.window / 2 + 2;
+        let coarse = base.coarser_levels(cfg.levels, MIN_LEVEL_SIDE);
+        Ok(Self {
+            coarse: coarse.iter().map(|level| padded(level, pad)).collect(),
+            base,
+            window: cfg.window,
+            requested: cfg.levels,
+            pad,
+        })
+    }
+
+    /// Levels built, including full resolution.
+    pub fn levels(&self) -> usize {
         self.coarse.len() + 1
     }
 
+    /// Whether the pyramid holds every level that `levels` would build: tracking with it then
+    /// equals tracking with a pyramid built for `levels`.
+    fn serves(&self, levels: usize) -> bool {
+        levels <= self.requested || self.levels() < self.requested
+    }
+
+    /// The full-resolution image.
+    pub fn image(&self) -> &Image<f32> {
+        &self.base
+    }
+
     /// The stored (padded above level 0) plane of level `l`.
-    fn level(&self, l: usize) -> &Plane {
+    fn level(&self, l: usize) -> &Image<f32> {
         if l == 0 {
-            self.base
+            &self.base
         } else {
             &self.coarse[l - 1]
         }
@@ -245,8 +178,15 @@ impl<'a> PaddedPyramid<'a> {
     }
 }
 
+impl KltPyramid<'static> {
+    /// The pyramid of `img`, owning it (to keep a frame's pyramid for the next frame).
+    pub fn from_image(img: Image<f32>, cfg: &KltConfig) -> Result<Self, ImageError> {
+        Self::build(Cow::Owned(img), cfg)
+    }
+}
+
 /// `img` with `pad` replicated border pixels on every side.
-fn padded(img: &Plane, pad: usize) -> Plane {
+fn padded(img: &Image<f32>, pad: usize) -> Image<f32> {
     let (w, h) = img.size();
     let pw = w + 2 * pad;
     let mut data = Vec::with_capacity(pw * (h + 2 * pad));
@@ -256,7 +196,7 @@ fn padded(img: &Plane, pad: usize) -> Plane {
         data.extend_from_slice(row);
         data.extend(std::iter::repeat(row[w - 1]).take(pad));
     }
-    Plane::new(pw, h + 2 * pad, data).expect("one padded row of pw values per padded row")
+    Image::new(pw, h + 2 * pad, data).expect("one padded row of pw values per padded row")
 }
 
 /// Per-thread buffers of one window.
@@ -284,7 +224,7 @@ impl Scratch {
 
 /// Samples the `win x win` patch of `plane` centred at `(cx, cy)` into `out`, bilinearly; the
 /// bilinear weights are shared by the whole patch. Pixels beyond the border are replicated.
-fn sample_patch(plane: &Plane, cx: f32, cy: f32, win: usize, out: &mut [f32]) {
+fn sample_patch(plane: &Image<f32>, cx: f32, cy: f32, win: usize, out: &mut [f32]) {
     let half = (win / 2) as f32;
     let (x0f, y0f) = ((cx - half).floor(), (cy - half).floor());
     let (fx, fy) = (cx - half - x0f, cy - half - y0f);
@@ -377,18 +317,22 @@ fn lane_sums2(j: &[f32], t: &[f32], gx: &[f32], gy: &[f32]) -> [f32; 2] {
     out
 }
 
-/// Tracks `start` from pyramid `from` into pyramid `to`; returns position, status and error.
+/// Tracks `start` from pyramid `from` into pyramid `to`, from `guess` (a full-resolution
+/// position) or zero flow; returns position, status and error.
 fn track_point(
-    from: &PaddedPyramid,
-    to: &PaddedPyramid,
+    from: &KltPyramid,
+    to: &KltPyramid,
     start: Vector2<f32>,
+    guess: Option<Vector2<f32>>,
     cfg: &KltConfig,
     s: &mut Scratch,
 ) -> (Vector2<f32>, TrackStatus, f32) {
     let win = cfg.window;
     let npix = (win * win) as f32;
-    let levels = from.levels().min(to.levels());
-    let mut flow = Vector2::<f32>::zeros();
+    let levels = from.levels().min(to.levels()).min(cfg.levels);
+    let mut flow = guess.map_or_else(Vector2::<f32>::zeros, |g| {
+        (g - start) * 0.5f32.powi(levels as i32 - 1)
+    });
     let mut error = 0.0;
     for level in (0..levels).rev() {
         let scale = 0.5f32.powi(level as i32);
@@ -462,11 +406,11 @@ fn track_point(
 }
 
 /// Tracks `points` of `prev` into `next` with pyramidal Lucas-Kanade (see the module
-/// documentation). One [`KltTrack`] per input point, in order.
+/// documentation), building both pyramids; one [`KltTrack`] per input point, in order.
 ///
 /// ```
 /// use nalgebra::Vector2;
-/// use vofront_direct::{track_klt, KltConfig, Plane, TrackStatus};
+/// use vofront_image::{track_klt, Image, KltConfig, TrackStatus};
 /// let img = |dx: f32| {
 ///     let data = (0..96 * 80)
 ///         .map(|i| {
@@ -474,46 +418,84 @@ fn track_point(
 ///             100.0 + 40.0 * (x * 0.3).sin() * (y * 0.25).cos() + 30.0 * ((x + y) * 0.17).sin()
 ///         })
 ///         .collect();
-///     Plane::new(96, 80, data).unwrap()
+///     Image::new(96, 80, data).unwrap()
 /// };
 /// let tracks = track_klt(&img(0.0), &img(1.5), &[Vector2::new(48.0, 40.0)], &KltConfig::default()).unwrap();
 /// assert_eq!(tracks[0].status, TrackStatus::Tracked);
 /// assert!((tracks[0].position.x - 49.5).abs() < 0.05);
 /// ```
+///
+/// Errors: [`ImageError::SizeMismatch`], [`ImageError::ImageTooSmall`] (below 8 pixels),
+/// [`ImageError::InvalidConfig`].
 pub fn track_klt(
-    prev: &Plane,
-    next: &Plane,
+    prev: &Image<f32>,
+    next: &Image<f32>,
     points: &[Vector2<f32>],
     cfg: &KltConfig,
-) -> Result<Vec<KltTrack>, DirectError> {
+) -> Result<Vec<KltTrack>, ImageError> {
     prev.check_same_size(next)?;
     prev.check_min_size(MIN_LEVEL_SIDE)?;
-    if cfg.window < 3 || cfg.window % 2 == 0 || cfg.levels == 0 || cfg.max_iterations == 0 {
-        return Err(DirectError::InvalidConfig(
-            "window must be odd and >= 3, levels and max_iterations positive",
+    cfg.validate()?;
+    let (from, to) = rayon::join(|| KltPyramid::new(prev, cfg), || KltPyramid::new(next, cfg));
+    track_klt_pyramids(&from?, &to?, points, None, cfg)
+}
+
+/// Tracks `points` of `from`'s image into `to`'s with pyramidal Lucas-Kanade, each from its
+/// `initial` position in `to` when given (a prediction; zero flow otherwise); one [`KltTrack`]
+/// per input point, in order. A point or initial position that is not finite is
+/// [`TrackStatus::OutOfBounds`].
+///
+/// Errors: [`ImageError::SizeMismatch`] for pyramids of different image sizes,
+/// [`ImageError::InvalidConfig`] for a bad `cfg` or pyramids built for another window or with
+/// fewer than `cfg.levels` levels available from the image, [`ImageError::LengthMismatch`]
+/// when `initial` does not have one position per point.
+pub fn track_klt_pyramids(
+    from: &KltPyramid,
+    to: &KltPyramid,
+    points: &[Vector2<f32>],
+    initial: Option<&[Vector2<f32>]>,
+    cfg: &KltConfig,
+) -> Result<Vec<KltTrack>, ImageError> {
+    from.image().check_same_size(to.image())?;
+    cfg.validate()?;
+    if from.window != cfg.window || to.window != cfg.window {
+        return Err(ImageError::InvalidConfig(
+            "KLT pyramid built for another window size",
         ));
     }
-    let pad = cfg.window / 2 + 2;
-    let (from, to) = rayon::join(
-        || PaddedPyramid::new(prev, cfg.levels, pad),
-        || PaddedPyramid::new(next, cfg.levels, pad),
-    );
+    if !from.serves(cfg.levels) || !to.serves(cfg.levels) {
+        return Err(ImageError::InvalidConfig(
+            "KLT pyramid built with fewer levels than the configuration asks for",
+        ));
+    }
+    if let Some(initial) = initial {
+        if initial.len() != points.len() {
+            return Err(ImageError::LengthMismatch {
+                expected: points.len(),
+                got: initial.len(),
+            });
+        }
+    }
+    let guess = |i: usize| initial.map(|g| g[i]);
     let n = cfg.window * cfg.window;
     Ok(points
         .par_iter()
+        .enumerate()
         .map_init(
             || Scratch::new(n),
-            |s, &p| {
-                if !(p.x.is_finite() && p.y.is_finite()) {
+            |s, (i, &p)| {
+                let g = guess(i);
+                let finite = |v: Vector2<f32>| v.x.is_finite() && v.y.is_finite();
+                if !finite(p) || !g.map_or(true, finite) {
                     return KltTrack {
                         position: p,
                         status: TrackStatus::OutOfBounds,
                         error: 0.0,
                     };
                 }
-                let (q, mut status, error) = track_point(&from, &to, p, cfg, s);
+                let (q, mut status, error) = track_point(from, to, p, g, cfg, s);
                 if let (TrackStatus::Tracked, Some(limit)) = (status, cfg.forward_backward) {
-                    let (back, back_status, _) = track_point(&to, &from, q, cfg, s);
+                    let (back, back_status, _) = track_point(to, from, q, g.map(|_| p), cfg, s);
                     if back_status != TrackStatus::Tracked || (back - p).norm() > limit {
                         status = TrackStatus::ForwardBackward;
                     }
