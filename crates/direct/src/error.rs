@@ -1,7 +1,7 @@
 //! Typed failures of the direct methods.
 
 use thiserror::Error;
-use vofront_geometry::CameraError;
+use vofront_core::CameraError;
 use vofront_robust::SolveError;
 
 /// Everything the direct aligners and the KLT tracker refuse to do.

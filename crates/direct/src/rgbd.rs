@@ -11,7 +11,7 @@ use std::sync::Arc;
 
 use nalgebra::Vector2;
 use rayon::prelude::*;
-use vofront_geometry::{Camera, Pinhole};
+use vofront_core::{Camera, Pinhole};
 
 use crate::error::DirectError;
 use crate::plane::{Bilinear, Plane};
