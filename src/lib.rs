@@ -3,8 +3,9 @@
 //! Two camera frames in, a relative pose `T_21` (points of frame 1 into frame 2,
 //! `x2 = R x1 + t`) and quality scores out. The workspace crates are re-exported here:
 //!
+//! - [`core`]: SO(3)/SE(3) and camera models, shared by every crate;
 //! - [`robust`]: losses, IRLS, damped normal equations shared by every estimator;
-//! - [`geometry`]: camera models, SO(3)/SE(3), two-view and PnP geometry;
+//! - [`geometry`]: two-view and PnP geometry (re-exports `core`'s camera and Lie modules);
 //! - [`features`]: ORB detection, description and Hamming matching;
 //! - [`direct`]: photometric alignment and KLT;
 //! - [`fixtures`]: synthetic scenes with exact ground truth.
@@ -20,6 +21,7 @@ pub mod presets;
 pub mod report;
 pub mod trajectory;
 
+pub use vofront_core as core;
 pub use vofront_direct as direct;
 pub use vofront_features as features;
 pub use vofront_fixtures as fixtures;

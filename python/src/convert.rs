@@ -15,8 +15,8 @@ use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
 use pyo3::types::{PyDict, PyList};
 use serde_json::Value;
+use vofront::core::camera::{Camera, Distortion, Pinhole};
 use vofront::direct::Plane;
-use vofront::geometry::camera::{Camera, Distortion, Pinhole};
 use vofront::input::DepthMap;
 
 /// A 1-D numpy array owned by Python.

@@ -18,8 +18,8 @@ use std::sync::Arc;
 use std::time::Instant;
 
 use nalgebra::{Isometry3, Quaternion, Translation3, UnitQuaternion};
+use vofront_core::{Camera, Distortion, Pinhole};
 use vofront_direct::{align_se3, Plane, RgbdFrame, Se3Config, Undistorter};
-use vofront_geometry::{Camera, Distortion, Pinhole};
 use vofront_robust::Loss;
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {

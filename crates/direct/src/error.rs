@@ -1,7 +1,7 @@
 //! Typed failures of the direct methods.
 
 use thiserror::Error;
-use vofront_geometry::CameraError;
+use vofront_core::CameraError;
 use vofront_image::ImageError;
 use vofront_robust::SolveError;
 

@@ -9,7 +9,7 @@
 use std::borrow::Cow;
 use std::sync::Arc;
 
-use vofront_geometry::{Camera, Pinhole, UndistortMap};
+use vofront_core::{Camera, Pinhole, UndistortMap};
 use vofront_image::Remap;
 
 use crate::error::DirectError;
@@ -19,7 +19,7 @@ use crate::plane::Plane;
 pub const MIN_RGBD_SIDE: usize = 16;
 
 /// The undistortion remap of one camera at one image size: the map `u -> K D(K^-1 u)`
-/// (`vofront_geometry::UndistortMap`, same intrinsics `K`) applied by the image crate's
+/// (`vofront_core::UndistortMap`, same intrinsics `K`) applied by the image crate's
 /// [`Remap`]. Build it once per camera and image size and share it (`Arc`).
 #[derive(Debug, Clone, PartialEq)]
 pub struct Undistorter {

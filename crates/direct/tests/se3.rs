@@ -1,14 +1,14 @@
 //! SE(3) direct alignment on rendered RGB-D views of the fixtures' box room.
 
 use nalgebra::{Isometry3, Vector2};
+use vofront_core::camera::{Camera, Pinhole};
+use vofront_core::lie::rotation_angle_deg;
 use vofront_direct::{
     align_se3, photometric_residual_map, DirectError, InverseDepthPoint, Plane, RgbdFrame,
     Se3Config, Se3Reference,
 };
 use vofront_fixtures::image2d::{add_gaussian_noise, brightness, occlude_patches};
 use vofront_fixtures::scene::{default_camera, distorted_camera, pose_wc, Rendered, Scene};
-use vofront_geometry::camera::{Camera, Pinhole};
-use vofront_geometry::lie::rotation_angle_deg;
 use vofront_robust::Loss;
 
 /// Rotation error allowed on noiseless renders, degrees (the brief's requirement).
@@ -189,7 +189,7 @@ fn stopping_below_the_noise_matches_full_convergence() {
         early.iterations,
         full.iterations
     );
-    let difference = vofront_geometry::lie::se3_log(&(early.pose * full.pose.inverse()));
+    let difference = vofront_core::lie::se3_log(&(early.pose * full.pose.inverse()));
     let information = full
         .covariance
         .and_then(|c| c.try_inverse())

@@ -1,7 +1,7 @@
 //! Two-view and pose geometry for vofront.
 //!
-//! - [`lie`]: SO(3) / SE(3) exp, log and Jacobians used by every vofront crate;
-//! - [`camera`]: pinhole intrinsics with radial-tangential distortion, [`undistort_map`];
+//! - [`lie`], [`camera`], [`undistort_map`]: re-exported from `vofront-core` (SO(3) / SE(3),
+//!   camera models), so `vofront_geometry::camera::Camera` and friends keep their paths;
 //! - [`essential`]: five-point and eight-point solvers, Sampson error, pose recovery;
 //! - [`homography`]: four-point DLT and decomposition into `(R, t, n)`;
 //! - [`ransac`]: LO-MSAC driver generic over an [`ransac::Estimator`];
@@ -41,24 +41,22 @@
 #![warn(missing_docs)]
 
 pub mod bundle;
-pub mod camera;
 pub mod error;
 pub mod essential;
 pub mod homography;
-pub mod lie;
 pub mod p3p;
 pub mod pnp;
 pub mod ransac;
 pub mod relative_pose;
 pub mod residual;
 pub mod triangulate;
-pub mod undistort_map;
+
+pub use vofront_core::{camera, lie, undistort_map};
+pub use vofront_core::{Camera, CameraError, Distortion, Pinhole, UndistortMap};
 
 pub use bundle::{bundle_adjust, BundleConfig, BundleProblem, BundleReport, Observation};
-pub use camera::{Camera, CameraError, Distortion, Pinhole};
 pub use error::GeometryError;
 pub use pnp::{solve_pnp_ransac, PnpConfig, PnpResult};
 pub use ransac::RansacConfig;
 pub use relative_pose::{estimate_relative_pose, Model, RelativePose, RelativePoseConfig};
 pub use triangulate::{triangulate_dlt, triangulate_midpoint};
-pub use undistort_map::UndistortMap;

@@ -4,7 +4,7 @@
 
 use nalgebra::{Isometry3, SVector, Vector3};
 use rayon::prelude::*;
-use vofront_geometry::lie::retract_left;
+use vofront_core::lie::retract_left;
 use vofront_robust::{Loss, NormalEquations};
 
 use super::select::RefLevel;

@@ -217,7 +217,7 @@ impl Se3Reference {
         let current = &*pinhole_image(self.undistorter.as_deref(), current)?;
         let coarse = current.coarser_levels(self.levels.len(), MIN_LEVEL_SIDE);
         let mut state = Se3State {
-            pose: vofront_geometry::lie::normalized(prior),
+            pose: vofront_core::lie::normalized(prior),
             a: 1.0,
             b: 0.0,
         };
@@ -306,7 +306,7 @@ impl Se3Reference {
 /// ```
 /// use nalgebra::{Isometry3, Translation3, UnitQuaternion};
 /// use vofront_direct::{align_se3, Plane, RgbdFrame, Se3Config};
-/// use vofront_geometry::{Camera, Pinhole};
+/// use vofront_core::{Camera, Pinhole};
 /// // A textured fronto-parallel wall 2 m away, seen before and after a 2 cm sideways move.
 /// let cam = Camera::pinhole(Pinhole::new(100.0, 100.0, 39.5, 29.5).unwrap());
 /// let wall = |dx: f32| {

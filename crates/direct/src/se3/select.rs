@@ -6,7 +6,7 @@
 
 use rayon::prelude::*;
 
-use vofront_geometry::Pinhole;
+use vofront_core::Pinhole;
 
 use super::Se3Config;
 use crate::plane::Plane;

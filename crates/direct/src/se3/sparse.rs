@@ -9,7 +9,7 @@
 use std::sync::Arc;
 
 use nalgebra::Vector2;
-use vofront_geometry::Pinhole;
+use vofront_core::Pinhole;
 
 use super::select::{level_intrinsics, RefLevel};
 use super::{Se3Config, Se3Reference, MIN_LEVEL_SIDE};
@@ -41,7 +41,7 @@ impl Se3Reference {
     /// ```
     /// use nalgebra::{Isometry3, Vector2};
     /// use vofront_direct::{InverseDepthPoint, Plane, Se3Config, Se3Reference};
-    /// use vofront_geometry::Pinhole;
+    /// use vofront_core::Pinhole;
     /// // A textured wall 2 m away; every 3rd pixel becomes a reference point.
     /// let wall = |dx: f32| {
     ///     let data = (0..80 * 60)

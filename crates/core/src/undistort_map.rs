@@ -26,8 +26,8 @@ impl UndistortMap {
     /// `target` (use `camera.pinhole` to keep the same intrinsics).
     ///
     /// ```
-    /// use vofront_geometry::camera::{Camera, Distortion, Pinhole};
-    /// use vofront_geometry::undistort_map::UndistortMap;
+    /// use vofront_core::camera::{Camera, Distortion, Pinhole};
+    /// use vofront_core::undistort_map::UndistortMap;
     /// let cam = Camera::new(Pinhole::new(517.3, 516.5, 318.6, 255.3).unwrap(), Distortion::from_array([0.26, -0.95, 0.0, 0.0, 1.16]));
     /// let map = UndistortMap::new(&cam, &cam.pinhole, 640, 480).unwrap();
     /// // The principal point does not move.

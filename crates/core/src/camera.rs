@@ -197,7 +197,7 @@ impl Distortion {
 ///
 /// ```
 /// use nalgebra::{Vector2, Vector3};
-/// use vofront_geometry::camera::{Camera, Distortion, Pinhole};
+/// use vofront_core::camera::{Camera, Distortion, Pinhole};
 /// let cam = Camera::new(
 ///     Pinhole::new(517.3, 516.5, 318.6, 255.3).unwrap(),
 ///     Distortion::from_array([0.2624, -0.9531, -0.0054, 0.0026, 1.1633]),

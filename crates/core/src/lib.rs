@@ -1,0 +1,17 @@
+//! The vocabulary every vofront crate shares: Lie groups and camera models.
+//!
+//! - [`lie`]: SO(3) / SE(3) hat, exp, log, Jacobians, adjoint and pose normalisation;
+//! - [`camera`]: pinhole intrinsics with lens distortion (radial-tangential);
+//! - [`undistort_map`]: the per-pixel source positions that bring an image to the pinhole
+//!   geometry (the image crates do the resampling).
+//!
+//! Pose convention everywhere: `T_21: Isometry3<f64>` maps points of frame 1 into frame 2,
+//! `x2 = R x1 + t`. This crate depends on nothing but `nalgebra` and `thiserror`.
+#![warn(missing_docs)]
+
+pub mod camera;
+pub mod lie;
+pub mod undistort_map;
+
+pub use camera::{Camera, CameraError, Distortion, Pinhole};
+pub use undistort_map::UndistortMap;
