@@ -54,7 +54,7 @@ pub mod undistort_map;
 pub use bundle::{bundle_adjust, BundleConfig, BundleProblem, BundleReport, Observation};
 pub use camera::{Camera, CameraError, Distortion, Pinhole};
 pub use error::GeometryError;
-pub use pnp::{solve_pnp_ransac, PnpConfig, PnpResult};
+pub use pnp::{pnp_quality, solve_pnp_ransac, PnpConfig, PnpEvidence, PnpResult};
 pub use relative_pose::{estimate_relative_pose, Model, RelativePose, RelativePoseConfig};
 pub use triangulate::{triangulate_dlt, triangulate_midpoint};
 pub use undistort_map::UndistortMap;
