@@ -54,6 +54,14 @@ pub enum VoError {
         /// The tracker's minimum.
         min: f64,
     },
+    /// The estimate exists but its quality verdict is `failed`.
+    #[error("{what} failed: {reasons}")]
+    Rejected {
+        /// Which estimate ("SE(3)", "PnP", ...).
+        what: &'static str,
+        /// The verdict's reasons, `;`-separated names.
+        reasons: String,
+    },
 }
 
 /// Wall-clock time of each stage of [`TwoViewEstimator::relative_pose`], milliseconds.

@@ -16,7 +16,7 @@ use vofront::odometry::run::run;
 use vofront::odometry::{FrameEstimate, Tracker};
 use vofront::trajectory::Trajectory;
 
-use crate::convert::{array2, bad, camera, depth, gray8, pose_matrix};
+use crate::convert::{array2, bad, camera, depth, gray8, json_to_py, pose_matrix};
 use crate::errors::{dataset_error, failed, release};
 use crate::eval::{stats_dict, tum_rows};
 
@@ -67,8 +67,10 @@ impl Method {
 }
 
 /// A frame estimate as a dict: `timestamp`, `pose_wc` (4x4 camera-to-world), `status`
-/// (`ok`, `lost`, `reinitialised`), `quality` {`inliers`, `inlier_ratio`, `rmse`,
-/// `iterations`, `covariance_trace`, `keyframe`, `ms`}, `message` (why it was lost, or None).
+/// (`ok`, `unreliable`, `lost`, `reinitialised`), `quality` {`inliers`, `inlier_ratio`, `rmse`,
+/// `iterations`, `covariance_trace`, `keyframe`, `ms`}, `message` (why it was lost, or None),
+/// `pose_quality`: the quality record of the estimate behind the pose (`verdict`, `reasons`,
+/// support, `sigma`, covariance and sigmas, as in `two_view`), None without one.
 fn estimate_dict<'py>(
     py: Python<'py>,
     timestamp: f64,
@@ -89,6 +91,14 @@ fn estimate_dict<'py>(
     quality.set_item("ms", q.ms)?;
     out.set_item("quality", quality)?;
     out.set_item("message", e.message.as_deref())?;
+    let pose_quality = match &e.pose_quality {
+        Some(q) => Some(json_to_py(
+            py,
+            &serde_json::to_value(q).map_err(|e| bad(e.to_string()))?,
+        )?),
+        None => None,
+    };
+    out.set_item("pose_quality", pose_quality)?;
     Ok(out)
 }
 
@@ -254,6 +264,7 @@ pub fn run_odometry<'py>(
     summary.set_item("tracked", out.trajectory.len())?;
     summary.set_item("lost", s.lost)?;
     summary.set_item("reinitialised", s.reinitialised)?;
+    summary.set_item("unreliable", s.unreliable)?;
     summary.set_item("unreadable", s.unreadable)?;
     summary.set_item("keyframes", s.keyframes)?;
     summary.set_item("mean_ms", s.mean_ms)?;

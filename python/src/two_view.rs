@@ -17,7 +17,9 @@ use crate::errors::{failed, release};
 /// and homography RANSAC with model selection, chirality and refinement.
 ///
 /// Returns the keys of `vofront relpose` (`R`, `t`, `inliers`, `ms`) and `T_21` (4x4),
-/// `model` (`essential` / `homography`), `parallax_deg`, `inlier_mask` (N,) bool.
+/// `model` (`essential` / `homography`), `parallax_deg`, `inlier_mask` (N,) bool and
+/// `quality` (the record of `vofront relpose --json`: `verdict`, `reasons`, support, `sigma`,
+/// covariances, `rotation_sigma_deg`, `translation_direction_sigma_deg`).
 #[pyfunction]
 #[pyo3(signature = (x1, x2, K, dist = None))]
 #[allow(non_snake_case)]
@@ -54,6 +56,8 @@ pub fn relpose<'py>(
     out.set_item("model", model_name(fit.model))?;
     out.set_item("parallax_deg", fit.parallax_deg)?;
     out.set_item("inlier_mask", PyArray1::from_slice(py, &fit.inliers))?;
+    let quality = serde_json::to_value(&fit.quality).map_err(|e| bad(e.to_string()))?;
+    out.set_item("quality", json_to_py(py, &quality)?)?;
     Ok(out)
 }
 

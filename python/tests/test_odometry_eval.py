@@ -31,6 +31,13 @@ def test_odometry_tracks_rendered_sequence(sequence, method):
         assert out["status"] == "ok", out["message"]
         assert out["pose_wc"].shape == (4, 4)
         assert set(out["quality"]) >= {"inliers", "rmse", "keyframe", "ms"}
+        pq = out["pose_quality"]
+        if est:  # every frame after the first is an estimate with its record
+            assert pq["verdict"] == "ok" and pq["reasons"] == [], pq
+            assert 0 < pq["rotation_sigma_deg"] < 1 and 0 < pq["translation_sigma_m"] < 0.1
+            assert np.asarray(pq["covariance"]).shape == (6, 6)
+        else:  # the first frame is the origin by definition: no estimate behind it
+            assert pq is None
         est.append(out)
     assert vo.frames == len(est)
     np.testing.assert_allclose(est[0]["pose_wc"], np.eye(4), atol=1e-12)

@@ -110,6 +110,21 @@ def test_relpose_recovers_synthetic_motion():
     np.testing.assert_allclose(out["t"], t / np.linalg.norm(t), atol=1e-6)
     assert out["inliers"] == len(x1) and out["inlier_mask"].all()
     np.testing.assert_allclose(out["T_21"][:3, 3], out["t"])
+    q = out["quality"]
+    assert q["verdict"] == "ok" and q["reasons"] == [] and q["inliers"] == len(x1)
+    assert q["rotation_sigma_deg"] < 0.1 and q["translation_direction_sigma_deg"] < 1.0
+
+
+def test_relpose_on_random_correspondences_is_not_ok():
+    rng = np.random.default_rng(3)
+    x1 = rng.uniform([0, 0], [640, 480], (300, 2))
+    x2 = rng.uniform([0, 0], [640, 480], (300, 2))
+    try:
+        out = vofront.relpose(x1, x2, K_RENDER)
+    except vofront.VofrontError:
+        return  # no model at all: a typed error is the other honest answer
+    assert out["quality"]["verdict"] != "ok", out["quality"]
+    assert out["quality"]["reasons"]
 
 
 def test_relpose_equals_cli(tmp_path):
@@ -122,6 +137,8 @@ def test_relpose_equals_cli(tmp_path):
     np.testing.assert_allclose(py["R"], cli["R"], atol=1e-12)
     np.testing.assert_allclose(py["t"], cli["t"], atol=1e-12)
     assert py["inliers"] == cli["inliers"]
+    assert py["quality"]["verdict"] == cli["quality"]["verdict"]
+    assert py["quality"]["reasons"] == cli["quality"]["reasons"]
 
 
 def relpose_cli(csv):

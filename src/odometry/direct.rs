@@ -6,14 +6,16 @@
 //! ([`vofront_direct::Se3Reference`]); the frame's pose is then `T_wc = T_w_kf T_cur_kf^-1`.
 //! A result is rejected (frame lost) when the alignment fails (including a brightness gain
 //! outside `Se3Config::max_gain`: a flat image can be "explained" by `a = 0`) or when too few
-//! residuals are inliers.
+//! residuals are inliers, or when the fit's verdict ([`vofront_direct::Se3Result::quality`]) is `failed`.
 
 use std::sync::Arc;
 use std::time::Instant;
 
 use nalgebra::Isometry3;
+use vofront_direct::quality::intensity_variance;
 use vofront_direct::{DirectError, Plane, RgbdFrame, Se3Config, Se3Reference, Undistorter};
 use vofront_geometry::Camera;
+use vofront_robust::{QualityConfig, Verdict};
 
 use super::keyframe::{KeyframePolicy, KeyframeView};
 use super::{ms_since, FrameEstimate, FrameQuality, KeyframeSlot, TrackStatus, Tracker};
@@ -29,6 +31,8 @@ pub struct DirectTrackerConfig {
     pub keyframe: KeyframePolicy,
     /// Smallest inlier ratio for a frame to count as tracked.
     pub min_inlier_ratio: f64,
+    /// Minimum support of an `ok` alignment ([`vofront_direct::Se3Result::quality`]).
+    pub quality: QualityConfig,
 }
 
 impl Default for DirectTrackerConfig {
@@ -37,6 +41,7 @@ impl Default for DirectTrackerConfig {
             se3: Se3Config::default(),
             keyframe: KeyframePolicy::default(),
             min_inlier_ratio: 0.4,
+            quality: QualityConfig::default(),
         }
     }
 }
@@ -46,6 +51,8 @@ struct Keyframe {
     t_wc: Isometry3<f64>,
     median_depth: f64,
     selected: usize,
+    /// `var(I_kf)`, grey levels^2, for the chance test.
+    variance: f64,
     first_residual: Option<f64>,
 }
 
@@ -98,6 +105,7 @@ impl DirectTracker {
             t_wc,
             median_depth: median_depth(rgbd.depth()),
             selected,
+            variance: intensity_variance(rgbd.image()),
             first_residual: None,
         })
     }
@@ -137,21 +145,28 @@ impl Tracker for DirectTracker {
                 .restart(made, predicted, "no keyframe".into(), start);
         };
         let prior = predicted.inverse() * kf.t_wc;
+        let variances = kf.variance + intensity_variance(&current);
         let fit = kf
             .reference
             .align(&current, &prior, &self.cfg.se3)
             .map_err(VoError::from)
             .and_then(|r| {
-                if r.inlier_ratio < self.cfg.min_inlier_ratio {
+                let q = r.quality(kf.selected, variances, &self.cfg.quality);
+                if q.verdict == Verdict::Failed {
+                    Err(VoError::Rejected {
+                        what: "SE(3)",
+                        reasons: super::reasons_text(&q),
+                    })
+                } else if r.inlier_ratio < self.cfg.min_inlier_ratio {
                     Err(VoError::LowInlierRatio {
                         ratio: r.inlier_ratio,
                         min: self.cfg.min_inlier_ratio,
                     })
                 } else {
-                    Ok(r)
+                    Ok((r, q))
                 }
             });
-        let fit = match fit {
+        let (fit, pose_quality) = match fit {
             Ok(fit) => fit,
             Err(why) => {
                 let made = self.make_keyframe(frame, current, predicted);
@@ -189,6 +204,8 @@ impl Tracker for DirectTracker {
             status: TrackStatus::Ok,
             quality,
             message: None,
+            pose_quality: None,
         }
+        .judged(pose_quality)
     }
 }

@@ -222,6 +222,8 @@ impl Tracker for FeatureRgbdTracker {
             status: TrackStatus::Ok,
             quality,
             message: None,
+            pose_quality: None,
         }
+        .judged(fit.quality)
     }
 }

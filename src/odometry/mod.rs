@@ -3,7 +3,11 @@
 //! Every tracker aligns each new frame to its current keyframe, starting from the
 //! constant-velocity prediction ([`motion`]), decides when to take a new keyframe
 //! ([`keyframe`]), and reports the camera pose `T_wc` (camera-to-world, first frame at the
-//! origin) with a [`TrackStatus`] and [`FrameQuality`] scores. [`run`] drives a tracker over a
+//! origin) with a [`TrackStatus`], [`FrameQuality`] scores and the [`Quality`] record of the
+//! estimate behind the pose ([`FrameEstimate::pose_quality`]: SE(3) for [`direct`], PnP for
+//! [`feature_rgbd`], PnP or the initialising two-view pose for [`mono`]). The status agrees with
+//! the verdict: a `failed` estimate loses the frame, an `unreliable` one is
+//! [`TrackStatus::Unreliable`], never plain [`TrackStatus::Ok`]. [`run`] drives a tracker over a
 //! [`crate::dataset::Dataset`] and collects the trajectory.
 //!
 //! - [`direct`]: RGB-D photometric SE(3) alignment to the keyframe;
@@ -12,6 +16,7 @@
 
 pub mod direct;
 pub mod feature_rgbd;
+pub mod graph;
 pub mod keyframe;
 pub mod mono;
 pub mod motion;
@@ -23,6 +28,7 @@ use nalgebra::{Isometry3, Point3, Vector2};
 use vofront_features::{match_descriptors, match_windowed, Features, Match, MatchConfig};
 use vofront_geometry::pnp::{solve_pnp_ransac, PnpConfig, PnpResult};
 use vofront_geometry::Camera;
+use vofront_robust::{Quality, Verdict};
 
 use crate::dataset::Frame;
 use motion::ConstantVelocity;
@@ -30,7 +36,7 @@ use motion::ConstantVelocity;
 /// How tracking of one frame went.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum TrackStatus {
-    /// Aligned to the keyframe.
+    /// Aligned to the keyframe, with an `ok` verdict.
     Ok,
     /// Could not be aligned; the pose is the motion model's guess and is not part of the
     /// trajectory.
@@ -38,6 +44,10 @@ pub enum TrackStatus {
     /// Tracking restarted at this frame after being lost: a new keyframe placed at the motion
     /// model's guess, so the trajectory continues but may have jumped.
     Reinitialised,
+    /// Aligned to the keyframe, but the estimate's verdict is `unreliable` (its reasons are in
+    /// [`FrameEstimate::pose_quality`] and the message): the pose is in the trajectory, to be
+    /// used with its covariance or not at all.
+    Unreliable,
 }
 
 impl TrackStatus {
@@ -47,6 +57,7 @@ impl TrackStatus {
             TrackStatus::Ok => "ok",
             TrackStatus::Lost => "lost",
             TrackStatus::Reinitialised => "reinitialised",
+            TrackStatus::Unreliable => "unreliable",
         }
     }
 }
@@ -80,8 +91,20 @@ pub struct FrameEstimate {
     pub status: TrackStatus,
     /// Quality scores.
     pub quality: FrameQuality,
-    /// Why the frame was lost, if it was.
+    /// Why the frame was lost, if it was (or why its estimate is unreliable).
     pub message: Option<String>,
+    /// The quality record of the estimate behind the pose (SE(3), PnP or two-view); `None`
+    /// when there is none: lost frames and frames that (re)start tracking at a guess.
+    pub pose_quality: Option<Quality>,
+}
+
+/// Lower-case names of the reasons of `q`, joined by `;` (empty when there are none).
+pub fn reasons_text(q: &Quality) -> String {
+    q.reasons
+        .iter()
+        .map(|r| r.name())
+        .collect::<Vec<_>>()
+        .join(";")
 }
 
 /// Follows a camera through consecutive frames.
@@ -172,7 +195,23 @@ impl FrameEstimate {
             status,
             quality,
             message,
+            pose_quality: None,
         }
+    }
+
+    /// This estimate with the quality record `q` of the estimate behind its pose, the status
+    /// made to agree with the verdict: a tracked-ok frame whose verdict is not `ok` becomes
+    /// [`TrackStatus::Unreliable`] with the reasons as its message (trackers lose the frame on
+    /// a `failed` verdict before they get here; [`Verdict::Failed`] is reported unreliable at
+    /// best, never ok).
+    pub fn judged(mut self, q: Quality) -> Self {
+        if self.status == TrackStatus::Ok && q.verdict != Verdict::Ok {
+            self.status = TrackStatus::Unreliable;
+            self.message
+                .get_or_insert_with(|| format!("{}: {}", q.verdict, reasons_text(&q)));
+        }
+        self.pose_quality = Some(q);
+        self
     }
 
     /// A lost frame, reported at the motion model's guess `pose_wc`.
@@ -186,6 +225,7 @@ impl FrameEstimate {
             status: TrackStatus::Lost,
             quality,
             message: Some(why),
+            pose_quality: None,
         }
     }
 }
@@ -217,7 +257,8 @@ pub(crate) struct Located {
 impl PointLocator<'_> {
     /// Matches keyframe features carrying a point `P` to `current` within `window_px` of
     /// `pi(K prior P)` (by brute force when that finds fewer than `2 min_inliers`), then
-    /// estimates `T_cur_from` by PnP from the guess `prior`.
+    /// estimates `T_cur_from` by PnP from the guess `prior`; a PnP pose whose verdict is
+    /// `failed` is no location.
     pub fn locate(
         &self,
         kf: &Features,
@@ -256,7 +297,12 @@ impl PointLocator<'_> {
         let fit = solve_pnp_ransac(&world, &pixels, self.camera, Some(prior), self.pnp)
             .map_err(VoError::from)
             .and_then(|fit| {
-                if fit.inlier_count >= self.min_inliers {
+                if fit.quality.verdict == Verdict::Failed {
+                    Err(VoError::Rejected {
+                        what: "PnP",
+                        reasons: reasons_text(&fit.quality),
+                    })
+                } else if fit.inlier_count >= self.min_inliers {
                     Ok(fit)
                 } else {
                     Err(VoError::TooFew {

@@ -11,9 +11,11 @@ use std::io::{self, Write};
 use std::path::Path;
 use std::sync::atomic::{AtomicBool, Ordering};
 
+use serde::Serialize;
 use thiserror::Error;
+use vofront_robust::Verdict;
 
-use super::{FrameEstimate, TrackStatus, Tracker};
+use super::{reasons_text, FrameEstimate, TrackStatus, Tracker};
 use crate::dataset::Dataset;
 use crate::trajectory::Trajectory;
 
@@ -30,7 +32,7 @@ pub struct FrameRecord {
 
 impl FrameRecord {
     /// The camera-to-world pose `T_wc` that belongs in the trajectory: tracked frames only
-    /// (ok or reinitialised), `None` for lost and unreadable frames.
+    /// (ok, unreliable or reinitialised), `None` for lost and unreadable frames.
     pub fn trajectory_pose(&self) -> Option<nalgebra::Isometry3<f64>> {
         match &self.estimate {
             Ok(e) if e.status != TrackStatus::Lost => Some(e.pose_wc),
@@ -50,6 +52,8 @@ pub struct RunSummary {
     pub lost: usize,
     /// Frames where tracking restarted.
     pub reinitialised: usize,
+    /// Frames tracked with an `unreliable` verdict ([`TrackStatus::Unreliable`]).
+    pub unreliable: usize,
     /// Keyframes taken.
     pub keyframes: usize,
     /// Mean tracking time of the frames that were read, milliseconds (0 when none was read).
@@ -140,10 +144,12 @@ impl<W: Write> FrameSink for TumSink<W> {
     }
 }
 
-/// The columns of the per-frame metrics CSV, in order ([`metrics_row`] gives the values).
-/// `status` is `ok`, `lost`, `reinitialised` or `unreadable`; `message` says why a frame was
-/// lost, reinitialised or unreadable (commas and newlines replaced by `;`).
-pub const METRICS_COLUMNS: [&str; 11] = [
+/// The columns of the per-frame metrics CSV, in order ([`MetricsRow`] gives the values).
+/// `status` is `ok`, `unreliable`, `lost`, `reinitialised` or `unreadable`; `message` says why
+/// a frame was lost, reinitialised, unreliable or unreadable; `verdict` is the verdict of the
+/// estimate behind the pose (`ok`, `unreliable`, `failed`; empty without one) and `reasons`
+/// its reasons joined by `;`. `covariance_trace` is empty when unknown.
+pub const METRICS_COLUMNS: [&str; 13] = [
     "index",
     "timestamp",
     "status",
@@ -155,55 +161,122 @@ pub const METRICS_COLUMNS: [&str; 11] = [
     "covariance_trace",
     "ms",
     "message",
+    "verdict",
+    "reasons",
 ];
+
+/// One line of the metrics CSV, serialised by the `csv` crate in [`METRICS_COLUMNS`] order
+/// (quoting commas and newlines in the message as CSV does).
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct MetricsRow<'a> {
+    /// Index in the dataset.
+    pub index: usize,
+    /// Timestamp, seconds.
+    pub timestamp: f64,
+    /// [`TrackStatus::as_str`], or `unreadable`.
+    pub status: &'static str,
+    /// 1 when the frame became a keyframe.
+    pub keyframe: u8,
+    /// [`super::FrameQuality::inliers`].
+    pub inliers: usize,
+    /// [`super::FrameQuality::inlier_ratio`].
+    pub inlier_ratio: f64,
+    /// [`super::FrameQuality::rmse`].
+    pub rmse: f64,
+    /// [`super::FrameQuality::iterations`].
+    pub iterations: usize,
+    /// [`super::FrameQuality::covariance_trace`], empty when unknown.
+    pub covariance_trace: Option<f64>,
+    /// Milliseconds spent on the frame.
+    pub ms: f64,
+    /// Why the frame is not plainly tracked (empty when it is).
+    pub message: &'a str,
+    /// Verdict of the pose's estimate, empty without one.
+    pub verdict: Option<Verdict>,
+    /// Its reasons joined by `;`.
+    pub reasons: String,
+}
+
+impl<'a> MetricsRow<'a> {
+    /// The row of `record`.
+    pub fn of(record: &'a FrameRecord) -> Self {
+        match &record.estimate {
+            Ok(e) => {
+                let q = &e.quality;
+                Self {
+                    index: record.index,
+                    timestamp: record.timestamp,
+                    status: e.status.as_str(),
+                    keyframe: u8::from(q.keyframe),
+                    inliers: q.inliers,
+                    inlier_ratio: q.inlier_ratio,
+                    rmse: q.rmse,
+                    iterations: q.iterations,
+                    covariance_trace: q.covariance_trace,
+                    ms: q.ms,
+                    message: e.message.as_deref().unwrap_or(""),
+                    verdict: e.pose_quality.as_ref().map(|p| p.verdict),
+                    reasons: e.pose_quality.as_ref().map_or(String::new(), reasons_text),
+                }
+            }
+            Err(why) => Self {
+                index: record.index,
+                timestamp: record.timestamp,
+                status: "unreadable",
+                keyframe: 0,
+                inliers: 0,
+                inlier_ratio: 0.0,
+                rmse: 0.0,
+                iterations: 0,
+                covariance_trace: None,
+                ms: 0.0,
+                message: why,
+                verdict: None,
+                reasons: String::new(),
+            },
+        }
+    }
+}
 
 /// The CSV header line of [`METRICS_COLUMNS`] (without newline).
 pub fn metrics_header() -> String {
     METRICS_COLUMNS.join(",")
 }
 
-/// One CSV line (without newline) for `record`, one field per [`METRICS_COLUMNS`] entry.
+/// One CSV line (without newline) for `record`, one field per [`METRICS_COLUMNS`] entry, as
+/// [`MetricsCsvSink`] writes it.
 pub fn metrics_row(record: &FrameRecord) -> String {
-    let clean = |s: &str| s.replace([',', '\n', '\r'], ";");
-    match &record.estimate {
-        Ok(e) => {
-            let q = &e.quality;
-            format!(
-                "{},{:.6},{},{},{},{:.4},{:.4},{},{},{:.3},{}",
-                record.index,
-                record.timestamp,
-                e.status.as_str(),
-                u8::from(q.keyframe),
-                q.inliers,
-                q.inlier_ratio,
-                q.rmse,
-                q.iterations,
-                q.covariance_trace
-                    .map_or(String::new(), |t| format!("{t:.6e}")),
-                q.ms,
-                clean(e.message.as_deref().unwrap_or(""))
-            )
-        }
-        Err(why) => format!(
-            "{},{:.6},unreadable,0,0,0,0,0,0,0,{}",
-            record.index,
-            record.timestamp,
-            clean(why)
-        ),
-    }
+    let mut w = csv::WriterBuilder::new()
+        .has_headers(false)
+        .from_writer(Vec::new());
+    // Writing into memory cannot fail; a row that did would come out empty.
+    let line = w
+        .serialize(MetricsRow::of(record))
+        .ok()
+        .and_then(|()| w.into_inner().ok())
+        .unwrap_or_default();
+    String::from_utf8_lossy(&line).trim_end().to_string()
 }
 
-/// Writes the metrics CSV ([`METRICS_COLUMNS`]) one flushed line per frame; the header is
-/// written by [`MetricsCsvSink::new`].
-#[derive(Debug)]
+/// Writes the metrics CSV ([`METRICS_COLUMNS`]) with the `csv` crate, one flushed row per
+/// frame; the header is written by [`MetricsCsvSink::new`].
 pub struct MetricsCsvSink<W: Write> {
-    out: W,
+    out: csv::Writer<W>,
+}
+
+impl<W: Write> std::fmt::Debug for MetricsCsvSink<W> {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str("MetricsCsvSink")
+    }
 }
 
 impl<W: Write> MetricsCsvSink<W> {
     /// Writes the header line into `out` and returns the sink.
-    pub fn new(mut out: W) -> io::Result<Self> {
-        writeln!(out, "{}", metrics_header())?;
+    pub fn new(out: W) -> io::Result<Self> {
+        let mut out = csv::WriterBuilder::new()
+            .has_headers(false)
+            .from_writer(out);
+        out.write_record(METRICS_COLUMNS)?;
         out.flush()?;
         Ok(Self { out })
     }
@@ -211,7 +284,9 @@ impl<W: Write> MetricsCsvSink<W> {
 
 impl<W: Write> FrameSink for MetricsCsvSink<W> {
     fn frame(&mut self, record: &FrameRecord) -> io::Result<()> {
-        writeln!(self.out, "{}", metrics_row(record))?;
+        self.out
+            .serialize(MetricsRow::of(record))
+            .map_err(io::Error::other)?;
         self.out.flush()
     }
 }
@@ -292,6 +367,7 @@ fn drive<E>(
                 match e.status {
                     TrackStatus::Lost => s.lost += 1,
                     TrackStatus::Reinitialised => s.reinitialised += 1,
+                    TrackStatus::Unreliable => s.unreliable += 1,
                     TrackStatus::Ok => {}
                 }
             }

@@ -56,7 +56,7 @@ pub use vofront_core::{Camera, CameraError, Distortion, Pinhole, UndistortMap};
 
 pub use bundle::{bundle_adjust, BundleConfig, BundleProblem, BundleReport, Observation};
 pub use error::GeometryError;
-pub use pnp::{solve_pnp_ransac, PnpConfig, PnpResult};
+pub use pnp::{pnp_quality, solve_pnp_ransac, PnpConfig, PnpEvidence, PnpResult};
 pub use ransac::RansacConfig;
 pub use relative_pose::{estimate_relative_pose, Model, RelativePose, RelativePoseConfig};
 pub use triangulate::{triangulate_dlt, triangulate_midpoint};

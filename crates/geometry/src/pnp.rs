@@ -4,10 +4,16 @@
 //! `pi(X) = K D(X_xy / X_z)` (the full camera model, distortion included), a Huber loss and
 //! the left perturbation `T <- exp(delta) T`, `delta = (rho, phi)`, through
 //! [`vofront_robust::irls()`]. Its `sigma^2 H^-1` covariance of `delta` (metres, radians) is
-//! returned as a quality score (`None` when unknown: not refined, or the refinement failed).
+//! returned as a quality score (`None` when unknown: not refined, or the refinement failed),
+//! with the full [`Quality`] record ([`pnp_quality`]): support, the a-contrario chance test on
+//! re-paired correspondences, the residual scale and the sigmas in metres and degrees.
 
 use nalgebra::{Isometry3, Matrix2x3, Matrix6, Point3, SVector, Vector2, Vector3};
-use vofront_robust::{irls, IrlsConfig, LmConfig, Loss, Problem, Rows, ScaleMode};
+use vofront_robust::quality::{block_rows, log10_nfa, repaired_chance_rate, rms_of};
+use vofront_robust::{
+    irls, Convergence, IrlsConfig, LmConfig, Loss, Problem, Quality, QualityConfig, Reason, Rows,
+    ScaleMode, Support, Uncertainty,
+};
 
 use crate::camera::Camera;
 use crate::error::GeometryError;
@@ -30,6 +36,8 @@ pub struct PnpConfig {
     pub sigma_px: f64,
     /// Fewer inliers than this is [`GeometryError::NoModel`].
     pub min_inliers: usize,
+    /// Minimum support of an `ok` pose ([`PnpResult::quality`]).
+    pub quality: QualityConfig,
 }
 
 impl Default for PnpConfig {
@@ -43,6 +51,7 @@ impl Default for PnpConfig {
             refine: true,
             sigma_px: 1.0,
             min_inliers: 6,
+            quality: QualityConfig::default(),
         }
     }
 }
@@ -63,6 +72,8 @@ pub struct PnpResult {
     pub rmse_px: f64,
     /// RANSAC iterations.
     pub iterations: usize,
+    /// Verdict, support, chance test and uncertainty of the pose ([`pnp_quality`]).
+    pub quality: Quality,
 }
 
 /// P3P hypotheses scored by the squared reprojection error in normalized coordinates; local
@@ -292,6 +303,7 @@ pub fn solve_pnp_ransac(
         need: cfg.min_inliers,
     })?;
     let mut covariance = None;
+    let (mut converged, mut refine_iterations) = (true, 0);
     let inliers_of = |t: &Isometry3<f64>| -> Vec<usize> {
         (0..world.len())
             .filter(|&k| {
@@ -306,6 +318,7 @@ pub fn solve_pnp_ransac(
             need: cfg.min_inliers.max(MIN_POINTS),
         });
     }
+    let mut refined = !cfg.refine;
     if cfg.refine {
         let mut problem = Reprojection {
             camera,
@@ -316,6 +329,9 @@ pub fn solve_pnp_ransac(
         if let Ok(res) = irls(&mut problem, pose, &huber_irls(cfg.sigma_px, 20)) {
             pose = res.state;
             covariance = res.covariance;
+            converged = res.reason != Convergence::MaxIterations;
+            refine_iterations = res.iterations;
+            refined = true;
         }
         used = inliers_of(&pose);
     }
@@ -332,6 +348,21 @@ pub fn solve_pnp_ransac(
             need: cfg.min_inliers.max(MIN_POINTS),
         });
     }
+    let p0 = repaired_chance_rate(world.len(), |k, j| {
+        reprojection_px(camera, &pose, &world[k], &px[j]) < cfg.ransac.threshold
+    });
+    let evidence = PnpEvidence {
+        candidates: pixels.len(),
+        tested: world.len(),
+        inliers: inlier_count,
+        p0,
+        hypotheses: (iterations * P3P_SOLUTIONS + 1) as f64,
+        sigma_px: (sq / (2 * inlier_count).saturating_sub(6).max(1) as f64).sqrt(),
+        iterations: refine_iterations,
+        converged,
+        // A refinement that ran but left no covariance met singular normal equations.
+        degenerate: cfg.refine && refined && covariance.is_none(),
+    };
     Ok(PnpResult {
         pose,
         inliers,
@@ -339,5 +370,72 @@ pub fn solve_pnp_ransac(
         covariance,
         rmse_px: (sq / inlier_count as f64).sqrt(),
         iterations,
+        quality: pnp_quality(&evidence, covariance.as_ref(), &cfg.quality),
     })
+}
+
+/// P3P solutions per minimal sample (the quartic's largest root count).
+const P3P_SOLUTIONS: usize = 4;
+
+/// What [`pnp_quality`] rests on.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct PnpEvidence {
+    /// Input correspondences.
+    pub candidates: usize,
+    /// Correspondences with a valid bearing (the chance test's population).
+    pub tested: usize,
+    /// Inliers of the final pose.
+    pub inliers: usize,
+    /// Share of re-paired correspondences `(P_i, u_j)` within the inlier threshold of the final
+    /// pose ([`repaired_chance_rate`]).
+    pub p0: f64,
+    /// Hypotheses scored: RANSAC iterations times the P3P solutions, plus the prior.
+    pub hypotheses: f64,
+    /// Per-coordinate reprojection residual scale of the inliers,
+    /// `sqrt(sum |u - pi(T P)|^2 / (2 n - 6))`, pixels.
+    pub sigma_px: f64,
+    /// Iterations of the Huber refinement.
+    pub iterations: usize,
+    /// The refinement met its convergence test (true when not refined).
+    pub converged: bool,
+    /// The refinement's normal equations were singular.
+    pub degenerate: bool,
+}
+
+/// The quality record of a PnP pose: support `inliers` of `candidates`, the chance test
+/// `log10 NFA` of the consensus with a minimal sample of 3 ([`log10_nfa`]), the covariance of
+/// the left increment `(rho, phi)` of `T_cw` (metres, radians; 6x6) with
+/// `translation_sigma_m = sqrt(tr Sigma_rho)` and `rotation_sigma_deg = sqrt(tr Sigma_phi)`.
+pub fn pnp_quality(
+    ev: &PnpEvidence,
+    covariance: Option<&Matrix6<f64>>,
+    cfg: &QualityConfig,
+) -> Quality {
+    let support = Support {
+        log10_nfa: Some(log10_nfa(ev.tested, ev.inliers, 3, ev.p0, ev.hypotheses)),
+        ..Support::new(ev.inliers, ev.candidates)
+    };
+    let uncertainty = covariance.map_or_else(Uncertainty::default, |c| Uncertainty {
+        translation_sigma_m: Some(rms_of(&block_rows(|r, k| c[(r, k)], 0, 3), 1.0)),
+        rotation_sigma_deg: Some(rms_of(
+            &block_rows(|r, k| c[(r, k)], 3, 3),
+            1f64.to_degrees(),
+        )),
+        covariance: Some(block_rows(|r, k| c[(r, k)], 0, 6)),
+        ..Uncertainty::default()
+    });
+    let flags: &[Reason] = if ev.degenerate {
+        &[Reason::Degenerate]
+    } else {
+        &[]
+    };
+    Quality::judge(
+        support,
+        ev.sigma_px,
+        ev.iterations,
+        ev.converged,
+        uncertainty,
+        flags,
+        cfg,
+    )
 }

@@ -351,6 +351,43 @@ pub fn log10_nfa(n: usize, k: usize, sample: usize, p0: f64, tests: f64) -> f64 
     tests.max(1.0).log10() + log10_binomial_tail(n - sample, k - sample, p0)
 }
 
+/// Largest number of re-paired correspondences [`repaired_chance_rate`] measures (about).
+pub const CHANCE_SAMPLES: usize = 20_000;
+
+/// The cyclic shifts `s` (spread over `1..n-1`) under which correspondence `i` is re-paired with
+/// the second half of `(i + s) mod n`: about [`CHANCE_SAMPLES`] pairs in all, none of them an
+/// original pair. Empty for `n < 2`.
+pub fn repairing_shifts(n: usize) -> impl Iterator<Item = usize> {
+    let shifts = if n < 2 {
+        0
+    } else {
+        CHANCE_SAMPLES.div_ceil(n).clamp(1, n - 1)
+    };
+    (0..shifts).map(move |k| 1 + k * (n - 1) / shifts)
+}
+
+/// `p0` of [`log10_nfa`] from `hits` accepted among `total` re-paired correspondences, with a
+/// Laplace correction `(hits + 1) / (total + 2)` so that it is never exactly 0 or 1.
+pub fn laplace_rate(hits: usize, total: usize) -> f64 {
+    (hits as f64 + 1.0) / (total as f64 + 2.0)
+}
+
+/// `p0`: the share of re-paired correspondences `(first_i, second_{(i + s) mod n})`
+/// ([`repairing_shifts`]) that the final model's inlier test `is_inlier(i, j)` accepts: pairs
+/// that carry no information about the model but keep the distribution of the data.
+/// `1` for fewer than two correspondences.
+pub fn repaired_chance_rate(n: usize, is_inlier: impl Fn(usize, usize) -> bool) -> f64 {
+    if n < 2 {
+        return 1.0;
+    }
+    let (mut hits, mut total) = (0usize, 0usize);
+    for s in repairing_shifts(n) {
+        hits += (0..n).filter(|&i| is_inlier(i, (i + s) % n)).count();
+        total += n;
+    }
+    laplace_rate(hits, total)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

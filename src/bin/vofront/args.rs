@@ -325,9 +325,15 @@ pub struct OdometryArgs {
     /// Trajectory output, TUM format (camera-to-world, first frame at the origin).
     #[arg(long, value_name = "TXT", default_value = "vofront-out/trajectory.txt")]
     pub out: PathBuf,
-    /// Per-frame CSV: status, keyframe, inliers, inlier ratio, rmse, iterations, covariance trace, ms.
+    /// Per-frame CSV: status, keyframe, inliers, inlier ratio, rmse, iterations, covariance
+    /// trace, ms, message, verdict, reasons.
     #[arg(long, value_name = "CSV", default_value = "vofront-out/frames.csv")]
     pub metrics: PathBuf,
+    /// Pose graph for a back-end, g2o format: keyframe poses (VERTEX_SE3:QUAT, T_wc) and the
+    /// constraint between consecutive keyframes (EDGE_SE3:QUAT, T_ij = T_wi^-1 T_wj, 6x6
+    /// information of (t, q_xyz), translation first).
+    #[arg(long, value_name = "G2O")]
+    pub graph: Option<PathBuf>,
     /// Plot of the trajectory against the ground truth (needs ground truth in the dataset).
     #[arg(long, value_name = "PNG")]
     pub plot: Option<PathBuf>,

@@ -20,6 +20,7 @@ use vofront::eval::{ate, plot::write_plot, rpe, Alignment, AteResult, EvalConfig
 use vofront::geometry::Camera;
 use vofront::odometry::direct::{DirectTracker, DirectTrackerConfig};
 use vofront::odometry::feature_rgbd::{FeatureRgbdConfig, FeatureRgbdTracker};
+use vofront::odometry::graph::G2oSink;
 use vofront::odometry::mono::{MonoConfig, MonoTracker};
 use vofront::odometry::run::{
     run as run_tracker, run_with, FrameRecord, MetricsCsvSink, RunControl, RunOutput, RunSummary,
@@ -161,8 +162,8 @@ pub fn report(
         _ if s.frames == 0 => outln!("frames 0: nothing was tracked"),
         None => outln!("frames {}: none could be read, nothing was tracked", s.frames),
         Some(fps) => outln!(
-            "frames {}, tracked {}, lost {}, reinitialised {}, unreadable {}, keyframes {}, {:.1} ms per frame ({fps:.0} frames/s)",
-            s.frames, out.trajectory.len(), s.lost, s.reinitialised, s.unreadable, s.keyframes, s.mean_ms
+            "frames {}, tracked {} (unreliable {}), lost {}, reinitialised {}, unreadable {}, keyframes {}, {:.1} ms per frame ({fps:.0} frames/s)",
+            s.frames, out.trajectory.len(), s.unreliable, s.lost, s.reinitialised, s.unreadable, s.keyframes, s.mean_ms
         ),
     }
     let Some((ate, rpe)) = evaluate(dataset, out, alignment) else {
@@ -236,6 +237,7 @@ fn report_json(
         "tracked": out.trajectory.len(),
         "lost": s.lost,
         "reinitialised": s.reinitialised,
+        "unreliable": s.unreliable,
         "unreadable": s.unreadable,
         "keyframes": s.keyframes,
         "ms_per_frame": (s.frames > s.unreadable).then_some(s.mean_ms),
@@ -246,6 +248,7 @@ fn report_json(
         "rpe": rpe_json,
         "outputs": {"trajectory": args.out.display().to_string(),
                     "metrics": args.metrics.display().to_string(),
+                    "graph": args.graph.as_ref().map(|p| p.display().to_string()),
                     "plot": args.plot.as_ref().map(|p| p.display().to_string())},
     }))
 }
@@ -306,6 +309,12 @@ pub fn run(args: &OdometryArgs) -> Result<u8, String> {
     let trajectory = TumSink::new(create_output(&args.out)?);
     let metrics = MetricsCsvSink::new(create_output(&args.metrics)?)
         .map_err(|e| format!("{}: cannot write: {e}", args.metrics.display()))?;
+    let graph = args
+        .graph
+        .as_deref()
+        .map(create_output)
+        .transpose()?
+        .map(G2oSink::new);
     if let Some(path) = &args.plot {
         create_output(path)?;
         std::fs::remove_file(path).map_err(|e| format!("{}: {e}", path.display()))?;
@@ -328,7 +337,7 @@ pub fn run(args: &OdometryArgs) -> Result<u8, String> {
         }
         Ok(())
     };
-    let mut sink = (trajectory, (metrics, progress));
+    let mut sink = (trajectory, (metrics, (graph, progress)));
     let out = run_with(&dataset, tracker.as_mut(), &control, &mut sink);
     if let Some(bar) = &bar {
         bar.finish_and_clear();

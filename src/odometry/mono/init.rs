@@ -16,6 +16,7 @@ use vofront_geometry::{estimate_relative_pose, Camera, RelativePoseConfig};
 
 use super::map::LocalMap;
 use crate::odometry::{feature_pixel, FrameQuality};
+use crate::robust::Quality;
 
 /// Settings of [`initialise`].
 pub(super) struct InitRules<'a> {
@@ -36,13 +37,14 @@ pub(super) struct InitFailure {
     pub keep_reference: bool,
 }
 
-/// A two-keyframe map from `reference` (at `t_w1`) and `current`, with the frame's quality.
+/// A two-keyframe map from `reference` (at `t_w1`) and `current`, with the frame's quality
+/// and the two-view pose's quality record.
 pub(super) fn initialise(
     rules: &InitRules,
     reference: &Features,
     t_w1: &Isometry3<f64>,
     current: &Features,
-) -> Result<(LocalMap, FrameQuality), InitFailure> {
+) -> Result<(LocalMap, FrameQuality, Quality), InitFailure> {
     let give_up = |why: String| InitFailure {
         why,
         keep_reference: false,
@@ -96,7 +98,7 @@ pub(super) fn initialise(
         keyframe: true,
         ..FrameQuality::default()
     };
-    Ok((map, quality))
+    Ok((map, quality, rel.quality))
 }
 
 /// Scale `s` that brings `new` (initialised from the reference camera at `t_w1`) to the units

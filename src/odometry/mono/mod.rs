@@ -184,6 +184,7 @@ impl MonoTracker {
                 ..quality
             },
             message,
+            pose_quality: None,
         }
     }
 
@@ -309,7 +310,7 @@ impl MonoTracker {
             map,
             first_residual,
         };
-        Self::estimate(t_wc, TrackStatus::Ok, quality, None, start)
+        Self::estimate(t_wc, TrackStatus::Ok, quality, None, start).judged(fit.quality)
     }
 
     /// The map initialised from the reference at `t_w1` becomes the tracked map, its scale
@@ -416,7 +417,9 @@ impl Tracker for MonoTracker {
                     min_parallax_deg: self.cfg.min_init_parallax_deg,
                 };
                 match initialise(&rules, &reference, &t_wc, &current) {
-                    Ok((map, quality)) => self.start_map(map, &t_wc, quality, start),
+                    Ok((map, quality, pose_quality)) => self
+                        .start_map(map, &t_wc, quality, start)
+                        .judged(pose_quality),
                     Err(failure) => {
                         let keep = failure.keep_reference && frames < self.cfg.max_init_frames;
                         self.state = if keep {

@@ -8,18 +8,17 @@
 //! scored by [`log10_nfa`] with the number of hypotheses RANSAC tried.
 
 use nalgebra::{Matrix5, SMatrix};
-use vofront_robust::quality::{block_rows, log10_nfa, rms_of};
+use vofront_robust::quality::{block_rows, laplace_rate, log10_nfa, repairing_shifts, rms_of};
 use vofront_robust::{Quality, QualityConfig, Reason, Support, Uncertainty};
 
 use super::correspondences::Correspondences;
 
-/// Re-paired correspondences measured for `p0` (about; at most `n - 1` shifts of `n` pairs).
-const CHANCE_SAMPLES: usize = 20_000;
 /// Essential-matrix hypotheses per five-point sample (the solver's largest root count).
 pub(super) const ESSENTIAL_SOLUTIONS: usize = 10;
 
-/// `p0`: the share of re-paired correspondences `(x1_i, x2_{i+s})` that `is_inlier` accepts,
-/// with a Laplace correction so that it is never exactly zero.
+/// `p0`: the share of re-paired correspondences `(x1_i, x2_{i+s})`
+/// ([`vofront_robust::quality::repairing_shifts`]) that `is_inlier` accepts, with a Laplace
+/// correction so that it is never exactly zero.
 pub(super) fn chance_rate(
     data: &Correspondences,
     is_inlier: impl Fn(&Correspondences, usize) -> bool,
@@ -28,11 +27,8 @@ pub(super) fn chance_rate(
     if n < 2 {
         return 1.0;
     }
-    let shifts = CHANCE_SAMPLES.div_ceil(n).clamp(1, n - 1);
     let (mut hits, mut total) = (0usize, 0usize);
-    for k in 0..shifts {
-        // Shifts spread over 1..n-1.
-        let s = 1 + k * (n - 1) / shifts;
+    for s in repairing_shifts(n) {
         let mut shuffled = Correspondences::default();
         for i in 0..n {
             shuffled.push(&data.p1(i), &data.p2((i + s) % n));
@@ -40,7 +36,7 @@ pub(super) fn chance_rate(
         hits += (0..n).filter(|&i| is_inlier(&shuffled, i)).count();
         total += n;
     }
-    (hits as f64 + 1.0) / (total as f64 + 2.0)
+    laplace_rate(hits, total)
 }
 
 /// What [`judge`] needs beyond the estimator's flags.
