@@ -120,11 +120,11 @@ impl FeatureTracker {
         let (f1, f2) = (f1?, f2?);
         let detect = ms_since(start);
         let t_match = Instant::now();
-        let matches = match_descriptors(&f1.descriptors, &f2.descriptors, &self.matching);
+        let matches = match_descriptors(f1.descriptors(), f2.descriptors(), &self.matching);
         let matching = ms_since(t_match);
         let t_estimate = Instant::now();
         let point = |f: &Features, i: u32| {
-            nalgebra::Vector2::new(f.xs[i as usize] as f64, f.ys[i as usize] as f64)
+            nalgebra::Vector2::new(f.xs()[i as usize] as f64, f.ys()[i as usize] as f64)
         };
         let x1: Vec<_> = matches.iter().map(|m| point(&f1, m.query)).collect();
         let x2: Vec<_> = matches.iter().map(|m| point(&f2, m.train)).collect();

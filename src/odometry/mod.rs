@@ -191,7 +191,7 @@ impl FrameEstimate {
 
 /// Level-0 pixel of feature `i`.
 pub(crate) fn feature_pixel(f: &Features, i: u32) -> Vector2<f64> {
-    Vector2::new(f.xs[i as usize] as f64, f.ys[i as usize] as f64)
+    Vector2::new(f.xs()[i as usize] as f64, f.ys()[i as usize] as f64)
 }
 
 /// How a feature tracker locates a frame against keyframe features that carry 3D points.
@@ -246,7 +246,7 @@ impl PointLocator<'_> {
         )
         .unwrap_or_default();
         if matches.len() < 2 * self.min_inliers {
-            matches = match_descriptors(&kf.descriptors, &current.descriptors, self.matching);
+            matches = match_descriptors(kf.descriptors(), current.descriptors(), self.matching);
         }
         matches.retain(|m| points[m.query as usize].is_some());
         let world: Vec<Point3<f64>> = matches
