@@ -125,7 +125,7 @@ pub type FeatureTracker = TwoViewEstimator;
 /// Level-0 pixel of feature `i` (the `f32` detector coordinates widened to the `f64` of the
 /// geometry crate).
 pub(crate) fn feature_pixel(f: &Features, i: u32) -> nalgebra::Vector2<f64> {
-    nalgebra::Vector2::new(f64::from(f.xs[i as usize]), f64::from(f.ys[i as usize]))
+    nalgebra::Vector2::new(f64::from(f.xs()[i as usize]), f64::from(f.ys()[i as usize]))
 }
 
 /// Milliseconds since `start`.
@@ -161,7 +161,7 @@ impl TwoViewEstimator {
         let (f1, f2) = (f1?, f2?);
         let detect = ms_since(start);
         let t_match = Instant::now();
-        let matches = match_descriptors(&f1.descriptors, &f2.descriptors, &self.matching);
+        let matches = match_descriptors(f1.descriptors(), f2.descriptors(), &self.matching);
         let matching = ms_since(t_match);
         let t_estimate = Instant::now();
         let x1: Vec<_> = matches

@@ -156,9 +156,9 @@ fn two_view_pose_on_real_forward_driving_does_not_depend_on_the_seed() {
         ratio: Some(0.8),
         ..MatchConfig::default()
     };
-    let matches = match_descriptors(&a.descriptors, &b.descriptors, &matching);
+    let matches = match_descriptors(a.descriptors(), b.descriptors(), &matching);
     let pixel = |f: &vofront::features::Features, i: u32| {
-        Vector2::new(f64::from(f.xs[i as usize]), f64::from(f.ys[i as usize]))
+        Vector2::new(f64::from(f.xs()[i as usize]), f64::from(f.ys()[i as usize]))
     };
     let x1: Vec<_> = matches.iter().map(|m| pixel(&a, m.query)).collect();
     let x2: Vec<_> = matches.iter().map(|m| pixel(&b, m.train)).collect();

@@ -36,17 +36,17 @@ pub fn orb<'py>(
     let keypoints = (0..f.len())
         .flat_map(|i| {
             [
-                f.xs[i],
-                f.ys[i],
-                f.scales[i],
-                f.angles[i],
-                f.responses[i],
-                f32::from(f.levels[i]),
+                f.xs()[i],
+                f.ys()[i],
+                f.scales()[i],
+                f.angles()[i],
+                f.responses()[i],
+                f32::from(f.levels()[i]),
             ]
         })
         .collect();
     let descriptors = f
-        .descriptors
+        .descriptors()
         .iter()
         .flat_map(Descriptor::to_bytes)
         .collect();

@@ -283,7 +283,7 @@ impl PointLocator<'_> {
         )
         .unwrap_or_default();
         if matches.len() < 2 * self.min_inliers {
-            matches = match_descriptors(&kf.descriptors, &current.descriptors, self.matching);
+            matches = match_descriptors(kf.descriptors(), current.descriptors(), self.matching);
         }
         matches.retain(|m| points[m.query as usize].is_some());
         let world: Vec<Point3<f64>> = matches

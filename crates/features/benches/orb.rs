@@ -65,10 +65,10 @@ fn matching(c: &mut Criterion) {
         .expect("features");
     let mut group = c.benchmark_group("knn2_2000x2000");
     group.bench_function("1thread", |b| {
-        b.iter(|| one.install(|| knn2(&f1.descriptors, &f2.descriptors)))
+        b.iter(|| one.install(|| knn2(f1.descriptors(), f2.descriptors())))
     });
     group.bench_function("default", |b| {
-        b.iter(|| knn2(&f1.descriptors, &f2.descriptors))
+        b.iter(|| knn2(f1.descriptors(), f2.descriptors()))
     });
     group.finish();
 }

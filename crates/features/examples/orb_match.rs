@@ -50,16 +50,16 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let f1 = orb.detect_and_describe(&i1)?;
     let f2 = orb.detect_and_describe(&i2)?;
     let knn_ms = median_ms(15, || {
-        one.install(|| knn2(&f1.descriptors, &f2.descriptors));
+        one.install(|| knn2(f1.descriptors(), f2.descriptors()));
     });
     let cfg = MatchConfig {
         ratio: Some(0.75),
         cross_check: false,
         max_distance: 256,
     };
-    let matches = match_descriptors(&f1.descriptors, &f2.descriptors, &cfg);
+    let matches = match_descriptors(f1.descriptors(), f2.descriptors(), &cfg);
     let mut levels = [0usize; 32];
-    f1.levels.iter().for_each(|&l| levels[l as usize] += 1);
+    f1.levels().iter().for_each(|&l| levels[l as usize] += 1);
     println!(
         "detect_1t_ms {detect1:.3} detect_2t_ms {detect2:.3} knn2_1t_ms {knn_ms:.3} \
          features {} {} ratio_matches {} per_level {:?}",
@@ -76,7 +76,11 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             writeln!(
                 out,
                 "{},{},{},{},{}",
-                f1.xs[q], f1.ys[q], f2.xs[t], f2.ys[t], m.distance
+                f1.xs()[q],
+                f1.ys()[q],
+                f2.xs()[t],
+                f2.ys()[t],
+                m.distance
             )?;
         }
     }

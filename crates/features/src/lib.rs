@@ -22,7 +22,7 @@
 //! let orb = Orb::new(OrbConfig { n_features: 200, ..OrbConfig::default() }).unwrap();
 //! let f = orb.detect_and_describe(&img).unwrap();
 //! assert!(f.len() > 20 && f.len() <= 200);
-//! let m = match_descriptors(&f.descriptors, &f.descriptors, &MatchConfig { ratio: None, ..MatchConfig::default() });
+//! let m = match_descriptors(f.descriptors(), f.descriptors(), &MatchConfig { ratio: None, ..MatchConfig::default() });
 //! assert!(m.iter().all(|m| m.distance == 0));
 //! ```
 #![warn(missing_docs)]
@@ -40,7 +40,7 @@ pub mod windowed;
 
 pub use descriptor::Descriptor;
 pub use matching::{knn2, match_descriptors, Knn2, Match, MatchConfig};
-pub use orb::{Features, Orb, OrbConfig};
+pub use orb::{Feature, Features, Orb, OrbConfig};
 pub use windowed::match_windowed;
 
 /// Errors of feature detection and matching.

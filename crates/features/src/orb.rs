@@ -70,54 +70,175 @@ impl OrbConfig {
     }
 }
 
-/// ORB features as a structure of arrays; entry `i` of every vector is feature `i`.
-/// Positions are level-0 pixels (pixel `(0, 0)` is the centre of the top-left pixel).
-#[derive(Debug, Clone, Default, PartialEq)]
-pub struct Features {
+/// One ORB feature (an entry of [`Features`]).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Feature {
     /// x in level-0 pixels, to the right.
-    pub xs: Vec<f32>,
+    pub x: f32,
     /// y in level-0 pixels, down.
-    pub ys: Vec<f32>,
+    pub y: f32,
     /// Pyramid level where the feature was detected and described.
-    pub levels: Vec<u8>,
+    pub level: u8,
     /// Scale of that level, `scale_factor^level` (level-0 pixels per level pixel).
-    pub scales: Vec<f32>,
+    pub scale: f32,
     /// Orientation in radians, `atan2(m_01, m_10)` of the intensity centroid (y down, so a
     /// positive angle turns from +x towards +y, clockwise on screen).
-    pub angles: Vec<f32>,
+    pub angle: f32,
     /// Harris response (`det M - 0.04 trace^2`, gradients normalised to `[0, 1]` grey).
-    pub responses: Vec<f32>,
-    /// Steered BRIEF descriptors.
-    pub descriptors: Vec<Descriptor>,
+    pub response: f32,
+    /// Steered BRIEF descriptor.
+    pub descriptor: Descriptor,
+}
+
+/// ORB features as a structure of arrays; entry `i` of every array is feature `i` (see
+/// [`Feature`] for the meaning of each). Positions are level-0 pixels (pixel `(0, 0)` is the
+/// centre of the top-left pixel). The arrays always have equal lengths: they are built by
+/// [`Features::new`] (checked), [`Features::push`] or collected from [`Feature`]s.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct Features {
+    xs: Vec<f32>,
+    ys: Vec<f32>,
+    levels: Vec<u8>,
+    scales: Vec<f32>,
+    angles: Vec<f32>,
+    responses: Vec<f32>,
+    descriptors: Vec<Descriptor>,
 }
 
 impl Features {
+    /// Features from their arrays; [`FeatureError::LengthMismatch`] unless all have the
+    /// length of `xs`.
+    pub fn new(
+        xs: Vec<f32>,
+        ys: Vec<f32>,
+        levels: Vec<u8>,
+        scales: Vec<f32>,
+        angles: Vec<f32>,
+        responses: Vec<f32>,
+        descriptors: Vec<Descriptor>,
+    ) -> Result<Self, FeatureError> {
+        let n = xs.len();
+        let lens = [
+            ys.len(),
+            levels.len(),
+            scales.len(),
+            angles.len(),
+            responses.len(),
+            descriptors.len(),
+        ];
+        if let Some(got) = lens.into_iter().find(|&l| l != n) {
+            return Err(FeatureError::LengthMismatch { expected: n, got });
+        }
+        Ok(Self {
+            xs,
+            ys,
+            levels,
+            scales,
+            angles,
+            responses,
+            descriptors,
+        })
+    }
+
+    /// No features, with room for `n`.
+    pub fn with_capacity(n: usize) -> Self {
+        Self {
+            xs: Vec::with_capacity(n),
+            ys: Vec::with_capacity(n),
+            levels: Vec::with_capacity(n),
+            scales: Vec::with_capacity(n),
+            angles: Vec::with_capacity(n),
+            responses: Vec::with_capacity(n),
+            descriptors: Vec::with_capacity(n),
+        }
+    }
+
+    /// Appends one feature.
+    pub fn push(&mut self, f: Feature) {
+        self.xs.push(f.x);
+        self.ys.push(f.y);
+        self.levels.push(f.level);
+        self.scales.push(f.scale);
+        self.angles.push(f.angle);
+        self.responses.push(f.response);
+        self.descriptors.push(f.descriptor);
+    }
+
+    /// Appends every feature of `other`.
+    pub fn append(&mut self, other: Features) {
+        self.xs.extend(other.xs);
+        self.ys.extend(other.ys);
+        self.levels.extend(other.levels);
+        self.scales.extend(other.scales);
+        self.angles.extend(other.angles);
+        self.responses.extend(other.responses);
+        self.descriptors.extend(other.descriptors);
+    }
+
+    /// Feature `i`, `None` past the end.
+    pub fn get(&self, i: usize) -> Option<Feature> {
+        Some(Feature {
+            x: *self.xs.get(i)?,
+            y: self.ys[i],
+            level: self.levels[i],
+            scale: self.scales[i],
+            angle: self.angles[i],
+            response: self.responses[i],
+            descriptor: self.descriptors[i],
+        })
+    }
+
     /// Number of features.
     pub fn len(&self) -> usize {
         self.xs.len()
     }
 
-    /// [`FeatureError::LengthMismatch`] unless every per-feature array has [`Features::len`]
-    /// entries (the fields are public, so a hand-built set may break this).
-    pub fn check_lengths(&self) -> Result<(), FeatureError> {
-        let n = self.len();
-        let lens = [
-            self.ys.len(),
-            self.levels.len(),
-            self.scales.len(),
-            self.angles.len(),
-            self.responses.len(),
-            self.descriptors.len(),
-        ];
-        match lens.into_iter().find(|&l| l != n) {
-            Some(got) => Err(FeatureError::LengthMismatch { expected: n, got }),
-            None => Ok(()),
-        }
-    }
-
     /// Whether there are no features.
     pub fn is_empty(&self) -> bool {
         self.xs.is_empty()
+    }
+
+    /// x of every feature, level-0 pixels, to the right.
+    pub fn xs(&self) -> &[f32] {
+        &self.xs
+    }
+
+    /// y of every feature, level-0 pixels, down.
+    pub fn ys(&self) -> &[f32] {
+        &self.ys
+    }
+
+    /// Pyramid level of every feature.
+    pub fn levels(&self) -> &[u8] {
+        &self.levels
+    }
+
+    /// Level scale `scale_factor^level` of every feature.
+    pub fn scales(&self) -> &[f32] {
+        &self.scales
+    }
+
+    /// Orientation of every feature, radians.
+    pub fn angles(&self) -> &[f32] {
+        &self.angles
+    }
+
+    /// Harris response of every feature.
+    pub fn responses(&self) -> &[f32] {
+        &self.responses
+    }
+
+    /// Descriptor of every feature.
+    pub fn descriptors(&self) -> &[Descriptor] {
+        &self.descriptors
+    }
+}
+
+impl FromIterator<Feature> for Features {
+    fn from_iter<I: IntoIterator<Item = Feature>>(iter: I) -> Self {
+        let mut out = Features::default();
+        iter.into_iter().for_each(|f| out.push(f));
+        out
     }
 }
 
@@ -216,16 +337,8 @@ impl Orb {
                 self.describe_level(l as u8, level, cand, smooth, border, n)
             })
             .collect();
-        let mut out = Features::default();
-        for f in per_level {
-            out.xs.extend(f.xs);
-            out.ys.extend(f.ys);
-            out.levels.extend(f.levels);
-            out.scales.extend(f.scales);
-            out.angles.extend(f.angles);
-            out.responses.extend(f.responses);
-            out.descriptors.extend(f.descriptors);
-        }
+        let mut out = Features::with_capacity(per_level.iter().map(Features::len).sum());
+        per_level.into_iter().for_each(|f| out.append(f));
         Ok(out)
     }
 

@@ -120,9 +120,9 @@ impl Grid {
 ///
 /// ```
 /// use vofront_features::{match_windowed, Descriptor, Features, MatchConfig};
-/// let f = |x: f32, d: u64| Features {
-///     xs: vec![x], ys: vec![10.0], levels: vec![0], scales: vec![1.0], angles: vec![0.0],
-///     responses: vec![1.0], descriptors: vec![Descriptor([d, 0, 0, 0])],
+/// let f = |x: f32, d: u64| {
+///     Features::new(vec![x], vec![10.0], vec![0], vec![1.0], vec![0.0], vec![1.0], vec![Descriptor([d, 0, 0, 0])])
+///         .unwrap()
 /// };
 /// let m = match_windowed(&f(10.0, 1), &[(52.0, 10.0)], &f(50.0, 3), 5.0, None, &MatchConfig::default())
 ///     .unwrap();
@@ -136,8 +136,6 @@ pub fn match_windowed(
     level_tolerance: Option<u8>,
     cfg: &MatchConfig,
 ) -> Result<Vec<Match>, FeatureError> {
-    query.check_lengths()?;
-    train.check_lengths()?;
     if predicted.len() != query.len() {
         return Err(FeatureError::LengthMismatch {
             expected: query.len(),
@@ -150,20 +148,21 @@ pub fn match_windowed(
     if query.is_empty() || train.is_empty() {
         return Ok(Vec::new());
     }
-    let grid = Grid::new(&train.xs, &train.ys, radius.max(8.0));
+    let grid = Grid::new(train.xs(), train.ys(), radius.max(8.0));
     let r2 = radius * radius;
     let candidates = |q: usize, mut f: Box<dyn FnMut(u32, u32) + '_>| {
         let (px, py) = predicted[q];
         if !(px.is_finite() && py.is_finite()) {
             return;
         }
-        let level = query.levels[q];
+        let level = query.levels()[q];
         grid.visit(px, py, radius, |t| {
             let ti = t as usize;
-            let (dx, dy) = (train.xs[ti] - px, train.ys[ti] - py);
-            let level_ok = level_tolerance.map_or(true, |k| train.levels[ti].abs_diff(level) <= k);
+            let (dx, dy) = (train.xs()[ti] - px, train.ys()[ti] - py);
+            let level_ok =
+                level_tolerance.map_or(true, |k| train.levels()[ti].abs_diff(level) <= k);
             if dx * dx + dy * dy <= r2 && level_ok {
-                f(t, query.descriptors[q].hamming(&train.descriptors[ti]));
+                f(t, query.descriptors()[q].hamming(&train.descriptors()[ti]));
             }
         });
     };

@@ -2,7 +2,8 @@
 
 use proptest::prelude::*;
 use vofront_features::{
-    knn2, match_descriptors, match_windowed, Descriptor, FeatureError, Features, MatchConfig,
+    knn2, match_descriptors, match_windowed, Descriptor, Feature, FeatureError, Features,
+    MatchConfig,
 };
 
 fn descriptor() -> impl Strategy<Value = Descriptor> {
@@ -46,15 +47,18 @@ fn brute(q: &Descriptor, train: &[Descriptor]) -> (u32, u32, u32) {
 }
 
 fn features(pos: &[(f32, f32, u8)], desc: &[Descriptor]) -> Features {
-    Features {
-        xs: pos.iter().map(|p| p.0).collect(),
-        ys: pos.iter().map(|p| p.1).collect(),
-        levels: pos.iter().map(|p| p.2).collect(),
-        scales: pos.iter().map(|p| 1.2f32.powi(p.2 as i32)).collect(),
-        angles: vec![0.0; pos.len()],
-        responses: vec![1.0; pos.len()],
-        descriptors: desc.to_vec(),
-    }
+    pos.iter()
+        .zip(desc)
+        .map(|(&(x, y, level), &descriptor)| Feature {
+            x,
+            y,
+            level,
+            scale: 1.2f32.powi(level as i32),
+            angle: 0.0,
+            response: 1.0,
+            descriptor,
+        })
+        .collect()
 }
 
 proptest! {
@@ -122,9 +126,9 @@ proptest! {
         let cfg = MatchConfig { ratio: Some(0.8), cross_check, max_distance: 256 };
         let got = match_windowed(&qf, &predicted, &tf, radius, tol, &cfg).unwrap();
         let in_window = |qi: usize, ti: usize| {
-            let (dx, dy) = (tf.xs[ti] - predicted[qi].0, tf.ys[ti] - predicted[qi].1);
+            let (dx, dy) = (tf.xs()[ti] - predicted[qi].0, tf.ys()[ti] - predicted[qi].1);
             dx * dx + dy * dy <= radius * radius
-                && tol.map_or(true, |k| tf.levels[ti].abs_diff(qf.levels[qi]) <= k)
+                && tol.map_or(true, |k| tf.levels()[ti].abs_diff(qf.levels()[qi]) <= k)
         };
         let mut want = Vec::new();
         for qi in 0..q.len() {

@@ -47,7 +47,7 @@ fn inside(x: f64, y: f64) -> bool {
 fn repeatability(f1: &Features, f2: &Features, h: &Matrix3<f64>) -> f64 {
     let (mut visible, mut repeated) = (0, 0);
     for i in 0..f1.len() {
-        let Some((x, y)) = apply_homography(h, f1.xs[i] as f64, f1.ys[i] as f64) else {
+        let Some((x, y)) = apply_homography(h, f1.xs()[i] as f64, f1.ys()[i] as f64) else {
             continue;
         };
         // Only points whose neighbourhood is inside image 2 can be detected there.
@@ -56,7 +56,7 @@ fn repeatability(f1: &Features, f2: &Features, h: &Matrix3<f64>) -> f64 {
         }
         visible += 1;
         let near = (0..f2.len()).any(|j| {
-            let (dx, dy) = (f2.xs[j] as f64 - x, f2.ys[j] as f64 - y);
+            let (dx, dy) = (f2.xs()[j] as f64 - x, f2.ys()[j] as f64 - y);
             dx * dx + dy * dy <= (INLIER_PX * INLIER_PX) as f64
         });
         repeated += usize::from(near);
@@ -66,13 +66,13 @@ fn repeatability(f1: &Features, f2: &Features, h: &Matrix3<f64>) -> f64 {
 
 /// (correct, total) ratio-test matches of `f1` to `f2` under the warp `h`.
 fn correct_matches(f1: &Features, f2: &Features, h: &Matrix3<f64>) -> (usize, usize) {
-    let matches = match_descriptors(&f1.descriptors, &f2.descriptors, &MatchConfig::default());
+    let matches = match_descriptors(f1.descriptors(), f2.descriptors(), &MatchConfig::default());
     let correct = matches
         .iter()
         .filter(|m| {
             let (q, t) = (m.query as usize, m.train as usize);
-            apply_homography(h, f1.xs[q] as f64, f1.ys[q] as f64).is_some_and(|(x, y)| {
-                let (dx, dy) = (f2.xs[t] as f64 - x, f2.ys[t] as f64 - y);
+            apply_homography(h, f1.xs()[q] as f64, f1.ys()[q] as f64).is_some_and(|(x, y)| {
+                let (dx, dy) = (f2.xs()[t] as f64 - x, f2.ys()[t] as f64 - y);
                 inside(x, y) && dx * dx + dy * dy <= (INLIER_PX * INLIER_PX) as f64
             })
         })
@@ -138,17 +138,17 @@ fn orientation_follows_rotation_and_descriptor_stays_close() {
         let f2 = orb.detect_and_describe(&i2).unwrap();
         let (mut angle_err, mut dist) = (Vec::new(), Vec::new());
         for i in 0..f1.len() {
-            let (x, y) = apply_homography(&h, f1.xs[i] as f64, f1.ys[i] as f64).unwrap();
+            let (x, y) = apply_homography(&h, f1.xs()[i] as f64, f1.ys()[i] as f64).unwrap();
             // The same keypoint in image 2: same level, within 1 level-0 pixel.
             let Some(j) = (0..f2.len()).find(|&j| {
-                let (dx, dy) = (f2.xs[j] as f64 - x, f2.ys[j] as f64 - y);
-                f2.levels[j] == f1.levels[i] && f1.levels[i] == 0 && dx * dx + dy * dy <= 1.0
+                let (dx, dy) = (f2.xs()[j] as f64 - x, f2.ys()[j] as f64 - y);
+                f2.levels()[j] == f1.levels()[i] && f1.levels()[i] == 0 && dx * dx + dy * dy <= 1.0
             }) else {
                 continue;
             };
-            let turn = (f2.angles[j] - f1.angles[i]).to_degrees();
+            let turn = (f2.angles()[j] - f1.angles()[i]).to_degrees();
             angle_err.push(((turn - deg as f32 + 540.0).rem_euclid(360.0) - 180.0).abs());
-            dist.push(f1.descriptors[i].hamming(&f2.descriptors[j]));
+            dist.push(f1.descriptors()[i].hamming(&f2.descriptors()[j]));
         }
         assert!(
             angle_err.len() >= 50,
@@ -174,20 +174,20 @@ fn keypoints_spread_over_the_image_and_respect_levels() {
     let mut blocks = [0usize; 16];
     for i in 0..f.len() {
         let (bx, by) = (
-            (f.xs[i] / W as f32 * 4.0) as usize,
-            (f.ys[i] / H as f32 * 4.0) as usize,
+            (f.xs()[i] / W as f32 * 4.0) as usize,
+            (f.ys()[i] / H as f32 * 4.0) as usize,
         );
         blocks[by.min(3) * 4 + bx.min(3)] += 1;
     }
     assert!(blocks.iter().all(|&b| b >= 20), "{blocks:?}");
     for i in 0..f.len() {
-        assert!((f.scales[i] - 1.2f32.powi(f.levels[i] as i32)).abs() < 1e-4);
-        assert!(f.xs[i] >= 18.0 && f.ys[i] >= 18.0 && f.xs[i] < W as f32 - 18.0);
-        assert!(f.angles[i].is_finite() && f.responses[i].is_finite());
+        assert!((f.scales()[i] - 1.2f32.powi(f.levels()[i] as i32)).abs() < 1e-4);
+        assert!(f.xs()[i] >= 18.0 && f.ys()[i] >= 18.0 && f.xs()[i] < W as f32 - 18.0);
+        assert!(f.angles()[i].is_finite() && f.responses()[i].is_finite());
     }
     // Several levels are used, level 0 the most.
-    let l0 = f.levels.iter().filter(|&&l| l == 0).count();
-    assert!(f.levels.iter().any(|&l| l >= 4) && l0 > f.len() / 5);
+    let l0 = f.levels().iter().filter(|&&l| l == 0).count();
+    assert!(f.levels().iter().any(|&l| l >= 4) && l0 > f.len() / 5);
 }
 
 #[test]

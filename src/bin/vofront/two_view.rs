@@ -154,7 +154,7 @@ pub fn write_pictures(dir: &Path, inputs: &Inputs, outcome: &Outcome) -> Result<
         .enumerate()
         {
             let points: Vec<_> = (0..feats.len())
-                .map(|i| (feats.xs[i], feats.ys[i], feats.scales[i]))
+                .map(|i| (feats.xs()[i], feats.ys()[i], feats.scales()[i]))
                 .collect();
             save(
                 &draw::keypoints(img, &points),
@@ -172,7 +172,7 @@ pub fn write_pictures(dir: &Path, inputs: &Inputs, outcome: &Outcome) -> Result<
             .step_by(step)
             .map(|(m, &inlier)| {
                 let (q, t) = (m.query as usize, m.train as usize);
-                ((f1.xs[q], f1.ys[q]), (f2.xs[t], f2.ys[t]), inlier)
+                ((f1.xs()[q], f1.ys()[q]), (f2.xs()[t], f2.ys()[t]), inlier)
             })
             .collect();
         let e = &f.estimate;

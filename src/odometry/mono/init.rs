@@ -53,7 +53,11 @@ pub(super) fn initialise(
         why,
         keep_reference: true,
     };
-    let matches = match_descriptors(&reference.descriptors, &current.descriptors, rules.matching);
+    let matches = match_descriptors(
+        reference.descriptors(),
+        current.descriptors(),
+        rules.matching,
+    );
     if matches.len() < rules.min_points {
         return Err(give_up(format!(
             "initialising: {} matches to the reference, {} needed",
@@ -115,7 +119,7 @@ pub(super) fn scale_to(
     let old_points: Vec<_> = old.points.values().collect();
     let descriptors: Vec<_> = old_points.iter().map(|p| p.descriptor).collect();
     let c = Point3::from(t_w1.translation.vector);
-    let mut ratios: Vec<f64> = match_descriptors(&descriptors, &kf.features.descriptors, matching)
+    let mut ratios: Vec<f64> = match_descriptors(&descriptors, kf.features.descriptors(), matching)
         .iter()
         .filter_map(|m| {
             let p_new = new.points.get(&kf.point_of[m.train as usize]?)?.position;

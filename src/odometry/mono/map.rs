@@ -14,7 +14,7 @@
 use std::collections::{HashMap, VecDeque};
 
 use nalgebra::{Isometry3, Matrix2x3, Matrix3, Point3, Vector2, Vector3};
-use vofront_features::{match_descriptors, Descriptor, Features, MatchConfig};
+use vofront_features::{match_descriptors, Descriptor, Feature, Features, MatchConfig};
 use vofront_geometry::triangulate::{parallax_deg, triangulate_dlt};
 use vofront_geometry::Camera;
 
@@ -121,8 +121,8 @@ impl LocalMap {
         let kf0 = &self.keyframes[k0];
         let mut point = MapPoint {
             position,
-            descriptor: kf0.features.descriptors[f0 as usize],
-            level: kf0.features.levels[f0 as usize],
+            descriptor: kf0.features.descriptors()[f0 as usize],
+            level: kf0.features.levels()[f0 as usize],
             observations: Vec::with_capacity(observed.len()),
             visible: 1,
             found: 1,
@@ -182,14 +182,16 @@ impl LocalMap {
                 p.visible += 1;
             }
             let (u, v) = uv.map_or((f32::NAN, f32::NAN), |u| (u.x as f32, u.y as f32));
-            query.xs.push(u);
-            query.ys.push(v);
-            query.levels.push(p.level);
-            // Windowed matching reads only levels and descriptors of the query.
-            query.scales.push(1.0);
-            query.angles.push(0.0);
-            query.responses.push(0.0);
-            query.descriptors.push(p.descriptor);
+            // Windowed matching reads only positions, levels and descriptors of the query.
+            query.push(Feature {
+                x: u,
+                y: v,
+                level: p.level,
+                scale: 1.0,
+                angle: 0.0,
+                response: 0.0,
+                descriptor: p.descriptor,
+            });
             positions.push(Some(p.position));
         }
         (query, positions, ids)
@@ -219,11 +221,11 @@ impl LocalMap {
             let (free_a, free_b) = (free(a), free(b));
             let da: Vec<Descriptor> = free_a
                 .iter()
-                .map(|&f| a.features.descriptors[f as usize])
+                .map(|&f| a.features.descriptors()[f as usize])
                 .collect();
             let db: Vec<Descriptor> = free_b
                 .iter()
-                .map(|&f| b.features.descriptors[f as usize])
+                .map(|&f| b.features.descriptors()[f as usize])
                 .collect();
             let t_ba = b.t_wc.inverse() * a.t_wc;
             let mut new_points = Vec::new();
@@ -368,8 +370,8 @@ impl LocalMap {
             .filter_map(|&(kid, f)| {
                 let kf = &self.keyframes[self.index_of(kid)?];
                 Some((
-                    kf.features.descriptors[f as usize],
-                    kf.features.levels[f as usize],
+                    kf.features.descriptors()[f as usize],
+                    kf.features.levels()[f as usize],
                 ))
             })
             .collect();
