@@ -69,7 +69,8 @@ def relpose(
     """Robust relative pose ``T_21`` (unit ``t``) from (N, 2) pixel correspondences.
 
     Keys of ``vofront relpose``: ``R`` (3x3), ``t`` (3,), ``inliers``, ``ms``; plus ``T_21``
-    (4x4), ``model`` (``essential`` / ``homography``), ``parallax_deg``, ``inlier_mask`` (N,).
+    (4x4), ``model`` (``essential`` / ``homography``), ``parallax_deg``, ``inlier_mask`` (N,),
+    ``quality`` (``verdict``, ``reasons``, support, ``sigma``, covariances and sigmas).
     """
 
 def orb(img: _Image, n: int = 2000) -> Tuple[npt.NDArray[np.float32], npt.NDArray[np.uint8]]:
@@ -151,7 +152,9 @@ class Odometry:
         timestamp: Optional[float] = None,
     ) -> dict[str, Any]:
         """Tracks the next frame; returns ``timestamp``, ``pose_wc`` (4x4 ``T_wc``), ``status``
-        (``ok`` / ``lost`` / ``reinitialised``), ``quality`` and ``message``."""
+        (``ok`` / ``unreliable`` / ``lost`` / ``reinitialised``), ``quality``, ``message`` and
+        ``pose_quality`` (the estimate's quality record: ``verdict``, ``reasons``, sigmas; None
+        without an estimate)."""
     @property
     def frames(self) -> int:
         """Frames tracked so far."""

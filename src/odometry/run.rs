@@ -168,7 +168,7 @@ pub const METRICS_COLUMNS: [&str; 13] = [
 /// One line of the metrics CSV, serialised by the `csv` crate in [`METRICS_COLUMNS`] order
 /// (quoting commas and newlines in the message as CSV does).
 #[derive(Debug, Clone, PartialEq, Serialize)]
-pub struct MetricsRow<'a> {
+pub struct MetricsRow {
     /// Index in the dataset.
     pub index: usize,
     /// Timestamp, seconds.
@@ -189,17 +189,18 @@ pub struct MetricsRow<'a> {
     pub covariance_trace: Option<f64>,
     /// Milliseconds spent on the frame.
     pub ms: f64,
-    /// Why the frame is not plainly tracked (empty when it is).
-    pub message: &'a str,
+    /// Why the frame is not plainly tracked (empty when it is), newlines replaced by spaces so
+    /// that every frame is one line.
+    pub message: String,
     /// Verdict of the pose's estimate, empty without one.
     pub verdict: Option<Verdict>,
     /// Its reasons joined by `;`.
     pub reasons: String,
 }
 
-impl<'a> MetricsRow<'a> {
+impl MetricsRow {
     /// The row of `record`.
-    pub fn of(record: &'a FrameRecord) -> Self {
+    pub fn of(record: &FrameRecord) -> Self {
         match &record.estimate {
             Ok(e) => {
                 let q = &e.quality;
@@ -214,7 +215,7 @@ impl<'a> MetricsRow<'a> {
                     iterations: q.iterations,
                     covariance_trace: q.covariance_trace,
                     ms: q.ms,
-                    message: e.message.as_deref().unwrap_or(""),
+                    message: one_line(e.message.as_deref().unwrap_or("")),
                     verdict: e.pose_quality.as_ref().map(|p| p.verdict),
                     reasons: e.pose_quality.as_ref().map_or(String::new(), reasons_text),
                 }
@@ -230,12 +231,17 @@ impl<'a> MetricsRow<'a> {
                 iterations: 0,
                 covariance_trace: None,
                 ms: 0.0,
-                message: why,
+                message: one_line(why),
                 verdict: None,
                 reasons: String::new(),
             },
         }
     }
+}
+
+/// `text` with line breaks replaced by spaces.
+fn one_line(text: &str) -> String {
+    text.replace(['\n', '\r'], " ")
 }
 
 /// The CSV header line of [`METRICS_COLUMNS`] (without newline).
