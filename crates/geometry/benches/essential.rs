@@ -14,11 +14,7 @@ use vofront_geometry::camera::{Camera, Pinhole};
 use vofront_geometry::essential::essential_5pt;
 use vofront_geometry::relative_pose::{estimate_relative_pose, RelativePoseConfig};
 
-fn gauss(rng: &mut StdRng) -> f64 {
-    let a: f64 = rng.random_range(1e-12..1.0);
-    let b: f64 = rng.random_range(0.0..1.0);
-    (-2.0 * a.ln()).sqrt() * (std::f64::consts::TAU * b).cos()
-}
+use vofront_fixtures::noise::gauss;
 
 fn synthetic(n: usize) -> (Vec<Vector2<f64>>, Vec<Vector2<f64>>) {
     let mut rng = StdRng::seed_from_u64(0);

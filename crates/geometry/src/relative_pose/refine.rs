@@ -266,11 +266,7 @@ mod tests {
         outliers: f64,
     ) -> Correspondences {
         let mut rng = rand::rngs::StdRng::seed_from_u64(7);
-        let mut gauss = || {
-            // Box-Muller.
-            let (u, v): (f64, f64) = (rng.random_range(1e-12..1.0), rng.random_range(0.0..1.0));
-            (-2.0 * u.ln()).sqrt() * (std::f64::consts::TAU * v).cos()
-        };
+        let mut gauss = || vofront_fixtures::noise::gauss(&mut rng);
         let mut rng2 = rand::rngs::StdRng::seed_from_u64(8);
         let mut data = Correspondences::default();
         for _ in 0..600 {

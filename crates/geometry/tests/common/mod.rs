@@ -34,12 +34,7 @@ pub struct Scene {
     pub is_inlier: Vec<bool>,
 }
 
-/// Gaussian sample by Box-Muller.
-pub fn gauss(rng: &mut StdRng) -> f64 {
-    let a: f64 = rng.random_range(1e-12..1.0);
-    let b: f64 = rng.random_range(0.0..1.0);
-    (-2.0 * a.ln()).sqrt() * (std::f64::consts::TAU * b).cos()
-}
+pub use vofront_fixtures::noise::gauss;
 
 /// Random pose with rotation angle up to `max_angle` rad and translation of length `baseline`.
 pub fn random_pose(rng: &mut StdRng, max_angle: f64, baseline: f64) -> Isometry3<f64> {

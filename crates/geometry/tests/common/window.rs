@@ -24,12 +24,7 @@ pub struct Window {
     pub outlier: Vec<bool>,
 }
 
-/// Gaussian sample by Box-Muller.
-pub fn gauss(rng: &mut StdRng) -> f64 {
-    let a: f64 = rng.random_range(1e-12..1.0);
-    let b: f64 = rng.random_range(0.0..1.0);
-    (-2.0 * a.ln()).sqrt() * (std::f64::consts::TAU * b).cos()
-}
+pub use vofront_fixtures::noise::gauss;
 
 /// Camera centre of keyframe `k`: 0.25 m forward per keyframe with a sideways weave.
 pub fn centre(k: usize) -> Vector3<f64> {
