@@ -49,7 +49,9 @@ pub mod relative_pose;
 pub mod triangulate;
 
 pub use vofront_core::{camera, lie, undistort_map};
-pub use vofront_core::{Camera, CameraError, Distortion, Pinhole, UndistortMap};
+pub use vofront_core::{
+    Camera, CameraError, Distortion, KannalaBrandt, Lens, Pinhole, UndistortMap,
+};
 
 pub use bundle::{bundle_adjust, BundleConfig, BundleProblem, BundleReport, Observation};
 pub use error::GeometryError;
