@@ -4,7 +4,7 @@
 //! images are already undistorted), the KITTI odometry `calib.txt` P0 rows for the three
 //! calibration days, and the EuRoC MAV `cam0/sensor.yaml`.
 
-use vofront_geometry::camera::{Camera, Distortion, Pinhole};
+use vofront_geometry::camera::{Camera, Distortion, Lens, Pinhole};
 
 /// One named calibration.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -33,13 +33,13 @@ const fn preset(
                 cx: k[2],
                 cy: k[3],
             },
-            distortion: Distortion {
+            distortion: Lens::RadialTangential(Distortion {
                 k1: d[0],
                 k2: d[1],
                 p1: d[2],
                 p2: d[3],
                 k3: d[4],
-            },
+            }),
         },
     }
 }

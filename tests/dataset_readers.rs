@@ -236,7 +236,7 @@ fn empty_and_unknown_folders_are_typed_errors() {
 fn tum_presets_follow_the_folder_name() {
     let fr1 = tum_preset_for(Path::new("/data/rgbd_dataset_freiburg1_xyz")).expect("fr1");
     assert_eq!(fr1.pinhole.fx, 517.3);
-    assert_eq!(fr1.distortion.k3, 1.1633);
+    assert_eq!(fr1.distortion.coefficients()[4], 1.1633);
     let fr3 = tum_preset_for(Path::new("rgbd_dataset_freiburg3_long_office")).expect("fr3");
     assert!(fr3.distortion.is_identity());
     assert!(tum_preset_for(Path::new("/data/my_sequence")).is_none());
@@ -264,7 +264,10 @@ fn tum_camera_comes_from_the_folder_name_or_the_list_header() {
     )
     .expect("rgb");
     let data = Dataset::open(&plain).expect("open");
-    assert_eq!(data.camera.expect("fr1").distortion.k3, 1.1633);
+    assert_eq!(
+        data.camera.expect("fr1").distortion.coefficients()[4],
+        1.1633
+    );
     assert_eq!(
         data.camera_source,
         Some(CameraSource::FileHeader(rgb.clone()))
@@ -468,14 +471,8 @@ fn euroc_reads_camera_nanosecond_stamps_and_body_ground_truth() {
         (458.654, 457.296, 367.215, 248.375)
     );
     assert_eq!(
-        (
-            cam.distortion.k1,
-            cam.distortion.k2,
-            cam.distortion.p1,
-            cam.distortion.p2,
-            cam.distortion.k3
-        ),
-        (-0.28340811, 0.07395907, 0.00019359, 1.76187114e-05, 0.0)
+        cam.distortion.coefficients(),
+        [-0.28340811, 0.07395907, 0.00019359, 1.76187114e-05, 0.0]
     );
     assert!((data.frames[0].timestamp - 1403636579.0 - 0.763555584).abs() < 1e-6);
     assert!((data.frames[1].timestamp - data.frames[0].timestamp - 0.049999872).abs() < 1e-6);
@@ -525,7 +522,7 @@ fn euroc_sensor_yaml_written_by_opencv_is_read() {
     );
     dir.write(
         "mav0/cam0/sensor.yaml",
-        &EUROC_SENSOR.replace("radial-tangential", "equidistant"),
+        &EUROC_SENSOR.replace("radial-tangential", "double-sphere"),
     );
     assert!(matches!(
         Dataset::open(&dir.0),
@@ -648,4 +645,24 @@ fn write_tum_then_read_tum_file() {
         Trajectory::read_tum(&dir.0.join("nope.txt")),
         Err(TrajectoryError::Io { .. })
     ));
+}
+
+/// TUM-VI and RealSense T265 calibrations (Kalibr's `equidistant`) open as a Kannala-Brandt
+/// camera with the four coefficients in their order.
+#[test]
+fn euroc_equidistant_sensor_yaml_opens_as_kannala_brandt() {
+    let dir = TempDir::new("euroc-equidistant");
+    euroc_folder(&dir);
+    dir.write(
+        "mav0/cam0/sensor.yaml",
+        &EUROC_SENSOR.replace("radial-tangential", "equidistant"),
+    );
+    let cam = Dataset::open(&dir.0).expect("open").camera.expect("camera");
+    assert_eq!(cam.distortion.model_name(), "equidistant");
+    assert!(cam.distortion.radial_tangential().is_none());
+    assert_eq!(
+        cam.distortion.coefficients(),
+        [-0.28340811, 0.07395907, 0.00019359, 1.76187114e-05]
+    );
+    assert_eq!(cam.pinhole.fx, 458.654);
 }

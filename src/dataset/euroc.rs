@@ -3,7 +3,8 @@
 //! Layout: `mav0/cam0/data.csv` (`timestamp [ns],filename` lines, `#` header),
 //! `mav0/cam0/data/<filename>` (8-bit grey PNG), `mav0/cam0/sensor.yaml` with
 //! `intrinsics: [fu, fv, cu, cv]` and `distortion_coefficients: [k1, k2, p1, p2]`
-//! (`distortion_model: radial-tangential`). Timestamps are converted from nanoseconds to
+//! (`distortion_model: radial-tangential`, the default) or `[k1, k2, k3, k4]`
+//! (`distortion_model: equidistant`, Kannala-Brandt: TUM-VI, RealSense T265 via Kalibr). Timestamps are converted from nanoseconds to
 //! seconds.
 //!
 //! Ground truth, optional: `mav0/state_groundtruth_estimate0/data.csv`, lines
@@ -16,7 +17,7 @@
 use std::path::Path;
 
 use nalgebra::{Isometry3, Matrix3, Quaternion, Rotation3, Translation3, UnitQuaternion};
-use vofront_geometry::camera::{Camera, Distortion, Pinhole};
+use vofront_geometry::camera::{Camera, Distortion, KannalaBrandt, Lens, Pinhole};
 
 use super::{
     csv_records, parse_error, read_text, CameraSource, Dataset, DatasetConfig, DatasetError,
@@ -100,23 +101,15 @@ fn nanoseconds(field: &str) -> Result<f64, String> {
 }
 
 /// The camera of `sensor.yaml` (`intrinsics: [fu, fv, cu, cv]`,
-/// `distortion_coefficients: [k1, k2, p1, p2]`) and its optional `T_BS` (`data:` list of 16
-/// numbers, row-major 4x4).
+/// `distortion_coefficients: [k1, k2, p1, p2]` for `radial-tangential` (also when
+/// `distortion_model` is absent), `[k1, k2, k3, k4]` for `equidistant`) and its optional
+/// `T_BS` (`data:` list of 16 numbers, row-major 4x4).
 fn read_sensor_yaml(path: &Path) -> Result<(Camera, Option<Isometry3<f64>>), DatasetError> {
     let text = read_text(path)?;
     let sensor: SensorYaml = serde_yaml_ng::from_str(&yaml_body(&text)).map_err(|e| {
         let line = e.location().map_or(0, |l| l.line());
         parse_error(path, line, e.to_string())
     })?;
-    if let Some(model) = &sensor.distortion_model {
-        if model != "radial-tangential" {
-            return Err(parse_error(
-                path,
-                0,
-                format!("unsupported distortion model `{model}` (only radial-tangential)"),
-            ));
-        }
-    }
     let count = |key: &str, v: &[f64], n: usize| {
         if v.len() == n {
             Ok(())
@@ -131,14 +124,29 @@ fn read_sensor_yaml(path: &Path) -> Result<(Camera, Option<Isometry3<f64>>), Dat
     let (k, d) = (&sensor.intrinsics, &sensor.distortion_coefficients);
     count("intrinsics", k, 4)?;
     count("distortion_coefficients", d, 4)?;
-    let pinhole = Pinhole::new(k[0], k[1], k[2], k[3]).map_err(|source| DatasetError::Camera {
+    let camera_error = |source| DatasetError::Camera {
         path: path.to_path_buf(),
         source,
-    })?;
-    let camera = Camera::new(
-        pinhole,
-        Distortion::from_array([d[0], d[1], d[2], d[3], 0.0]),
-    );
+    };
+    let pinhole = Pinhole::new(k[0], k[1], k[2], k[3]).map_err(camera_error)?;
+    let lens = match sensor.distortion_model.as_deref() {
+        None | Some("radial-tangential" | "radtan") => {
+            Lens::from(Distortion::from_array([d[0], d[1], d[2], d[3], 0.0]))
+        }
+        Some("equidistant") => {
+            Lens::from(KannalaBrandt::new([d[0], d[1], d[2], d[3]]).map_err(camera_error)?)
+        }
+        Some(model) => {
+            return Err(parse_error(
+                path,
+                0,
+                format!(
+                    "unsupported distortion model `{model}` (radial-tangential or equidistant)"
+                ),
+            ))
+        }
+    };
+    let camera = Camera::new(pinhole, lens);
     let t_bs = match &sensor.t_bs {
         Some(m) => {
             count("T_BS.data", &m.data, 16)?;
@@ -154,9 +162,9 @@ fn read_sensor_yaml(path: &Path) -> Result<(Camera, Option<Isometry3<f64>>), Dat
 struct SensorYaml {
     /// `[fu, fv, cu, cv]`, pixels.
     intrinsics: Vec<f64>,
-    /// `[k1, k2, p1, p2]`.
+    /// `[k1, k2, p1, p2]` (radial-tangential) or `[k1, k2, k3, k4]` (equidistant).
     distortion_coefficients: Vec<f64>,
-    /// Only `radial-tangential` is supported.
+    /// `radial-tangential` (`radtan`; the default) or `equidistant` (Kannala-Brandt).
     #[serde(default)]
     distortion_model: Option<String>,
     /// Camera-to-body transform.

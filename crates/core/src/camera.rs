@@ -1,16 +1,25 @@
-//! Pinhole camera with radial-tangential (Brown-Conrady, OpenCV `k1 k2 p1 p2 k3`) distortion.
+//! Camera models: pinhole intrinsics with one of two lens models.
 //!
 //! Frames and units: a point `P = (X, Y, Z)` in the camera frame (metres, `Z` forward, `X`
 //! right, `Y` down) projects to normalized coordinates `x_n = (X/Z, Y/Z)`, which the lens
 //! distorts to `x_d = D(x_n)`, and the intrinsics map to pixels `u = fx x_d + cx`,
 //! `v = fy y_d + cy` (pixel centers at integer coordinates, `(0, 0)` the top-left pixel).
 //!
-//! The distortion, with `r^2 = x^2 + y^2`:
+//! The lens `D` is a [`Lens`]: radial-tangential ([`Distortion`], Brown-Conrady, OpenCV
+//! `k1 k2 p1 p2 k3`) or Kannala-Brandt equidistant ([`KannalaBrandt`], OpenCV `fisheye`,
+//! Kalibr `equidistant`). Callers go through [`Camera`] and never look at the model.
+//!
+//! Radial-tangential, with `r^2 = x^2 + y^2`:
 //! `x_d = x (1 + k1 r^2 + k2 r^4 + k3 r^6) + 2 p1 x y + p2 (r^2 + 2 x^2)`,
 //! `y_d = y (1 + k1 r^2 + k2 r^4 + k3 r^6) + p1 (r^2 + 2 y^2) + 2 p2 x y`.
+//! Kannala-Brandt: see [`kannala_brandt`]. Every model works on rays in front of the camera
+//! (`Z > 0`, less than 90 degrees off the axis), the domain of normalized coordinates.
 
 use nalgebra::{Matrix2, Matrix2x3, Matrix3, Unit, Vector2, Vector3};
 use thiserror::Error;
+
+pub mod kannala_brandt;
+pub use kannala_brandt::KannalaBrandt;
 
 /// Invalid camera parameters.
 #[derive(Debug, Clone, Copy, PartialEq, Error)]
@@ -193,7 +202,114 @@ impl Distortion {
     }
 }
 
-/// A calibrated camera: pinhole intrinsics plus lens distortion.
+/// The lens model of a [`Camera`]: how normalized coordinates bend, `x_d = D(x_n)`.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Lens {
+    /// Radial-tangential (Brown-Conrady) distortion; all zero = an ideal pinhole.
+    RadialTangential(Distortion),
+    /// Kannala-Brandt equidistant fisheye.
+    KannalaBrandt(KannalaBrandt),
+}
+
+impl Default for Lens {
+    /// No distortion (radial-tangential with every coefficient zero).
+    fn default() -> Self {
+        Self::RadialTangential(Distortion::default())
+    }
+}
+
+impl From<Distortion> for Lens {
+    fn from(d: Distortion) -> Self {
+        Self::RadialTangential(d)
+    }
+}
+
+impl From<KannalaBrandt> for Lens {
+    fn from(k: KannalaBrandt) -> Self {
+        Self::KannalaBrandt(k)
+    }
+}
+
+impl Lens {
+    /// The model's name as calibration files spell it: `radial-tangential` or `equidistant`.
+    pub fn model_name(&self) -> &'static str {
+        match self {
+            Self::RadialTangential(_) => "radial-tangential",
+            Self::KannalaBrandt(_) => "equidistant",
+        }
+    }
+
+    /// The coefficients in the model's order: `[k1, k2, p1, p2, k3]` or `[k1, k2, k3, k4]`.
+    pub fn coefficients(&self) -> Vec<f64> {
+        match self {
+            Self::RadialTangential(d) => vec![d.k1, d.k2, d.p1, d.p2, d.k3],
+            Self::KannalaBrandt(k) => k.coefficients().to_vec(),
+        }
+    }
+
+    /// The radial-tangential coefficients, `None` for another model.
+    pub fn radial_tangential(&self) -> Option<&Distortion> {
+        match self {
+            Self::RadialTangential(d) => Some(d),
+            Self::KannalaBrandt(_) => None,
+        }
+    }
+
+    /// True when the lens is an ideal pinhole (radial-tangential with every coefficient zero;
+    /// an equidistant lens never is: `theta_d = theta` is not `tan theta`).
+    pub fn is_identity(&self) -> bool {
+        self.radial_tangential()
+            .is_some_and(Distortion::is_identity)
+    }
+
+    /// True when the ray of normalized point `x_n` is inside the model's validity range
+    /// (always for radial-tangential, `theta < theta_max` for Kannala-Brandt).
+    #[inline]
+    pub fn contains(&self, x: &Vector2<f64>) -> bool {
+        match self {
+            Self::RadialTangential(_) => true,
+            Self::KannalaBrandt(k) => k.contains(x),
+        }
+    }
+
+    /// Distorted normalized coordinates `x_d = D(x_n)`.
+    #[inline]
+    pub fn distort(&self, x: &Vector2<f64>) -> Vector2<f64> {
+        match self {
+            Self::RadialTangential(d) => d.distort(x),
+            Self::KannalaBrandt(k) => k.distort(x),
+        }
+    }
+
+    /// Jacobian `d x_d / d x_n` of [`Lens::distort`].
+    #[inline]
+    pub fn distort_jacobian(&self, x: &Vector2<f64>) -> Matrix2<f64> {
+        match self {
+            Self::RadialTangential(d) => d.distort_jacobian(x),
+            Self::KannalaBrandt(k) => k.distort_jacobian(x),
+        }
+    }
+
+    /// Inverse of [`Lens::distort`], `None` outside the model's validity range or when the
+    /// iteration does not converge.
+    pub fn undistort(&self, xd: &Vector2<f64>) -> Option<Vector2<f64>> {
+        match self {
+            Self::RadialTangential(d) => d.undistort(xd),
+            Self::KannalaBrandt(k) => k.undistort(xd),
+        }
+    }
+
+    /// [`CameraError::NotFinite`] when a coefficient is not finite.
+    pub fn validate(&self) -> Result<(), CameraError> {
+        if self.coefficients().iter().all(|v| v.is_finite()) {
+            Ok(())
+        } else {
+            Err(CameraError::NotFinite)
+        }
+    }
+}
+
+/// A calibrated camera: pinhole intrinsics plus a lens model ([`Lens`]).
 ///
 /// ```
 /// use nalgebra::{Vector2, Vector3};
@@ -211,16 +327,16 @@ impl Distortion {
 pub struct Camera {
     /// Intrinsics.
     pub pinhole: Pinhole,
-    /// Lens distortion (identity by default).
-    pub distortion: Distortion,
+    /// Lens model and its coefficients (no distortion by default).
+    pub distortion: Lens,
 }
 
 impl Camera {
-    /// A camera from intrinsics and distortion.
-    pub fn new(pinhole: Pinhole, distortion: Distortion) -> Self {
+    /// A camera from intrinsics and a lens ([`Distortion`], [`KannalaBrandt`] or [`Lens`]).
+    pub fn new(pinhole: Pinhole, distortion: impl Into<Lens>) -> Self {
         Self {
             pinhole,
-            distortion,
+            distortion: distortion.into(),
         }
     }
 
@@ -228,27 +344,42 @@ impl Camera {
     pub fn pinhole(pinhole: Pinhole) -> Self {
         Self {
             pinhole,
-            distortion: Distortion::default(),
+            distortion: Lens::default(),
         }
     }
 
     /// Checks intrinsics and distortion for the invariants of [`Pinhole::new`].
     pub fn validate(&self) -> Result<(), CameraError> {
         self.pinhole.validate()?;
-        let d = &self.distortion;
-        if [d.k1, d.k2, d.p1, d.p2, d.k3].iter().all(|v| v.is_finite()) {
-            Ok(())
-        } else {
-            Err(CameraError::NotFinite)
-        }
+        self.distortion.validate()
     }
 
-    /// Pixel of a camera-frame point through the lens, `None` behind the camera.
+    /// Normalized coordinates `x_n = (X/Z, Y/Z)` of a camera-frame point, `None` behind the
+    /// camera or outside the lens's validity range.
+    #[inline]
+    fn normalized(&self, p: &Vector3<f64>) -> Option<Vector2<f64>> {
+        if p.z <= 0.0 {
+            return None;
+        }
+        let xn = Vector2::new(p.x / p.z, p.y / p.z);
+        self.distortion.contains(&xn).then_some(xn)
+    }
+
+    /// Pixel of a camera-frame point through the lens, `None` behind the camera or outside
+    /// the lens's validity range.
     pub fn project(&self, p: &Vector3<f64>) -> Option<Vector2<f64>> {
-        (p.z > 0.0).then(|| {
-            let xn = Vector2::new(p.x / p.z, p.y / p.z);
-            self.pinhole.to_pixel(&self.distortion.distort(&xn))
-        })
+        self.normalized(p).map(|xn| self.normalized_to_pixel(&xn))
+    }
+
+    /// `d pixel / d P` of [`Camera::project`] (2 x 3, pixels per metre):
+    /// `diag(fx, fy) (d x_d / d x_n) [[1/Z, 0, -X/Z^2], [0, 1/Z, -Y/Z^2]]`; `None` where
+    /// [`Camera::project`] is.
+    pub fn project_jacobian(&self, p: &Vector3<f64>) -> Option<Matrix2x3<f64>> {
+        let xn = self.normalized(p)?;
+        let iz = 1.0 / p.z;
+        let dxn = Matrix2x3::new(iz, 0.0, -xn.x * iz, 0.0, iz, -xn.y * iz);
+        let k = Matrix2::new(self.pinhole.fx, 0.0, 0.0, self.pinhole.fy);
+        Some(k * self.distortion.distort_jacobian(&xn) * dxn)
     }
 
     /// Undistorted normalized coordinates `x_n` of an observed pixel.
@@ -291,6 +422,49 @@ mod tests {
         );
     }
 
+    /// A Kannala-Brandt lens with TUM-VI-sized coefficients and a stronger one.
+    fn fisheyes() -> [KannalaBrandt; 2] {
+        [
+            KannalaBrandt::new([0.0034, 0.0007, -0.0021, 0.0002]).unwrap(),
+            KannalaBrandt::new([-0.05, 0.01, -0.002, 0.0003]).unwrap(),
+        ]
+    }
+
+    /// Every model, each with the largest angle to the axis (radians) its tests use.
+    fn lenses() -> Vec<(Lens, f64)> {
+        let mut all = vec![
+            (Lens::default(), 1.3),
+            (Distortion::from_array(TUM_FR1).into(), 0.4),
+        ];
+        all.extend(fisheyes().map(|k| (Lens::from(k), 1.45)));
+        all
+    }
+
+    /// The camera-frame point at `depth` metres along the ray `theta` off the axis at
+    /// azimuth `phi`.
+    fn ray_point(theta: f64, phi: f64, depth: f64) -> Vector3<f64> {
+        depth
+            * Vector3::new(
+                theta.sin() * phi.cos(),
+                theta.sin() * phi.sin(),
+                theta.cos(),
+            )
+    }
+
+    #[test]
+    fn equidistant_lens_maps_angle_to_radius() {
+        // With every k zero, theta_d = theta: the pixel radius is f theta.
+        let cam = Camera::new(
+            Pinhole::new(300.0, 300.0, 320.0, 240.0).unwrap(),
+            KannalaBrandt::new([0.0; 4]).unwrap(),
+        );
+        let theta = 1.2f64;
+        let px = cam.project(&ray_point(theta, 0.0, 2.0)).unwrap();
+        assert!((px.x - 320.0 - 300.0 * theta).abs() < 1e-9 && (px.y - 240.0).abs() < 1e-9);
+        assert!(!cam.distortion.is_identity());
+        assert_eq!(cam.distortion.model_name(), "equidistant");
+    }
+
     proptest! {
         #[test]
         fn undistort_inverts_distort(x in -0.6f64..0.6, y in -0.45f64..0.45) {
@@ -327,6 +501,54 @@ mod tests {
                 e[c] = h;
                 let numeric = (k.project(&(p + e)).unwrap() - k.project(&(p - e)).unwrap()) / (2.0 * h);
                 prop_assert!((numeric - j.column(c)).norm() < 1e-5);
+            }
+        }
+
+        #[test]
+        fn every_model_projects_and_unprojects(theta_frac in 0.0f64..1.0, phi in -3.2f64..3.2, depth in 0.2f64..30.0) {
+            let k = Pinhole::new(380.0, 375.0, 320.0, 240.0).unwrap();
+            for (lens, max_theta) in lenses() {
+                let cam = Camera::new(k, lens);
+                let p = ray_point(theta_frac * max_theta, phi, depth);
+                let px = cam.project(&p).unwrap();
+                let ray = cam.bearing(&px).unwrap();
+                prop_assert!((ray.into_inner() - p.normalize()).norm() < 1e-9, "{lens:?}");
+            }
+        }
+
+        #[test]
+        fn every_model_has_exact_jacobians(theta_frac in 0.0f64..1.0, phi in -3.2f64..3.2, depth in 0.5f64..10.0) {
+            let k = Pinhole::new(380.0, 375.0, 320.0, 240.0).unwrap();
+            for (lens, max_theta) in lenses() {
+                let cam = Camera::new(k, lens);
+                let p = ray_point(theta_frac * max_theta, phi, depth);
+                let xn = Vector2::new(p.x / p.z, p.y / p.z);
+                let jd = lens.distort_jacobian(&xn);
+                let h = 1e-7;
+                for c in 0..2 {
+                    let mut e = Vector2::zeros();
+                    e[c] = h;
+                    let numeric = (lens.distort(&(xn + e)) - lens.distort(&(xn - e))) / (2.0 * h);
+                    // Relative to the Jacobian's size: normalized coordinates reach tan(83 deg).
+                    prop_assert!((numeric - jd.column(c)).norm() < 1e-6 * (1.0 + jd.norm()), "{lens:?}");
+                }
+                let jp = cam.project_jacobian(&p).unwrap();
+                let h = 1e-6 * depth;
+                for c in 0..3 {
+                    let mut e = Vector3::zeros();
+                    e[c] = h;
+                    let numeric = (cam.project(&(p + e)).unwrap() - cam.project(&(p - e)).unwrap()) / (2.0 * h);
+                    prop_assert!((numeric - jp.column(c)).norm() < 1e-5 * (1.0 + jp.norm()), "{lens:?}");
+                }
+            }
+        }
+
+        #[test]
+        fn fisheye_pixels_outside_the_lens_have_no_ray(scale in 1.0001f64..3.0, phi in -3.2f64..3.2) {
+            for lens in fisheyes() {
+                let edge = lens.theta_d(lens.theta_max()) * scale;
+                let xd = Vector2::new(edge * phi.cos(), edge * phi.sin());
+                prop_assert_eq!(lens.undistort(&xd), None);
             }
         }
     }

@@ -1,7 +1,8 @@
 //! The vocabulary every vofront crate shares: Lie groups and camera models.
 //!
 //! - [`lie`]: SO(3) / SE(3) hat, exp, log, Jacobians, adjoint and pose normalisation;
-//! - [`camera`]: pinhole intrinsics with lens distortion (radial-tangential);
+//! - [`camera`]: pinhole intrinsics with a lens model ([`Lens`]: radial-tangential or
+//!   Kannala-Brandt equidistant), one [`Camera`] type for every model;
 //! - [`undistort_map`]: the per-pixel source positions that bring an image to the pinhole
 //!   geometry (the image crates do the resampling).
 //!
@@ -13,5 +14,5 @@ pub mod camera;
 pub mod lie;
 pub mod undistort_map;
 
-pub use camera::{Camera, CameraError, Distortion, Pinhole};
+pub use camera::{Camera, CameraError, Distortion, KannalaBrandt, Lens, Pinhole};
 pub use undistort_map::UndistortMap;

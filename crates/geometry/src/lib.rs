@@ -52,7 +52,9 @@ pub mod residual;
 pub mod triangulate;
 
 pub use vofront_core::{camera, lie, undistort_map};
-pub use vofront_core::{Camera, CameraError, Distortion, Pinhole, UndistortMap};
+pub use vofront_core::{
+    Camera, CameraError, Distortion, KannalaBrandt, Lens, Pinhole, UndistortMap,
+};
 
 pub use bundle::{bundle_adjust, BundleConfig, BundleProblem, BundleReport, Observation};
 pub use error::GeometryError;

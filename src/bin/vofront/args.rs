@@ -3,7 +3,7 @@
 use std::path::PathBuf;
 
 use clap::{Args, Parser, Subcommand, ValueEnum};
-use vofront::geometry::camera::{Camera, Distortion, Pinhole};
+use vofront::geometry::camera::{Camera, Distortion, KannalaBrandt, Lens, Pinhole};
 use vofront::presets::{camera_preset, principal_point_warning, PRESETS};
 
 /// vofront: visual-odometry front-end. Without a command, runs the synthetic demo.
@@ -52,7 +52,8 @@ pub struct CameraArgs {
     /// Principal point y, pixels [default: 239.5].
     #[arg(long, allow_negative_numbers = true)]
     pub cy: Option<f64>,
-    /// Radial-tangential distortion k1,k2,p1,p2,k3 (fewer values: the rest are 0).
+    /// Distortion coefficients in the order of --dist-model: radial-tangential k1,k2,p1,p2,k3,
+    /// equidistant k1,k2,k3,k4 (fewer values: the rest are 0).
     #[arg(
         long,
         value_name = "k1,k2,p1,p2,k3",
@@ -61,6 +62,45 @@ pub struct CameraArgs {
         allow_hyphen_values = true
     )]
     pub dist: Option<Vec<f64>>,
+    /// Lens model of --dist: radial-tangential (alias radtan) [default] or equidistant
+    /// (Kannala-Brandt fisheye; aliases kannala-brandt, fisheye).
+    #[arg(long, value_enum, value_name = "MODEL", requires = "dist")]
+    pub dist_model: Option<DistModel>,
+}
+
+/// The lens model that `--dist` gives the coefficients of.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
+pub enum DistModel {
+    /// Radial-tangential (OpenCV k1,k2,p1,p2,k3).
+    #[value(name = "radial-tangential", alias = "radtan")]
+    RadialTangential,
+    /// Kannala-Brandt equidistant (OpenCV fisheye, Kalibr equidistant: k1,k2,k3,k4).
+    #[value(alias = "kannala-brandt", alias = "fisheye")]
+    Equidistant,
+}
+
+impl DistModel {
+    /// The lens with `coefficients` in this model's order (missing ones are 0).
+    fn lens(self, coefficients: &[f64]) -> Result<Lens, String> {
+        let (n, name) = match self {
+            Self::RadialTangential => (5, "radial-tangential"),
+            Self::Equidistant => (4, "equidistant"),
+        };
+        if coefficients.len() > n {
+            return Err(format!(
+                "--dist takes at most {n} coefficients for --dist-model {name}, got {}",
+                coefficients.len()
+            ));
+        }
+        let mut all = [0.0; 5];
+        all[..coefficients.len()].copy_from_slice(coefficients);
+        Ok(match self {
+            Self::RadialTangential => Distortion::from_array(all).into(),
+            Self::Equidistant => KannalaBrandt::new([all[0], all[1], all[2], all[3]])
+                .map_err(|e| e.to_string())?
+                .into(),
+        })
+    }
 }
 
 impl CameraArgs {
@@ -110,11 +150,10 @@ impl CameraArgs {
         )
         .map_err(|e| e.to_string())?;
         let distortion = match &self.dist {
-            Some(d) => {
-                let mut all = [0.0; 5];
-                all[..d.len()].copy_from_slice(d);
-                Distortion::from_array(all)
-            }
+            Some(d) => self
+                .dist_model
+                .unwrap_or(DistModel::RadialTangential)
+                .lens(d)?,
             None => base.distortion,
         };
         let camera = Camera::new(pinhole, distortion);

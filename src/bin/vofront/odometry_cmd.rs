@@ -17,7 +17,7 @@ use indicatif::{ProgressBar, ProgressStyle};
 use serde_json::{json, Value};
 use vofront::dataset::{Dataset, DatasetConfig};
 use vofront::eval::{ate, plot::write_plot, rpe, Alignment, AteResult, EvalConfig, RpeResult};
-use vofront::geometry::Camera;
+use vofront::geometry::{Camera, Lens};
 use vofront::odometry::direct::{DirectTracker, DirectTrackerConfig};
 use vofront::odometry::feature_rgbd::{FeatureRgbdConfig, FeatureRgbdTracker};
 use vofront::odometry::graph::G2oSink;
@@ -57,9 +57,19 @@ fn choose_camera(args: &OdometryArgs, dataset: &Dataset) -> Result<(Camera, Stri
 /// One line describing `camera`.
 fn describe_camera(camera: &Camera) -> String {
     let (k, d) = (camera.pinhole, camera.distortion);
+    let names = match d {
+        Lens::RadialTangential(_) => "k1,k2,p1,p2,k3",
+        Lens::KannalaBrandt(_) => "k1,k2,k3,k4",
+    };
+    let values: Vec<String> = d.coefficients().iter().map(f64::to_string).collect();
     format!(
-        "fx {} fy {} cx {} cy {}, distortion k1,k2,p1,p2,k3 = {},{},{},{},{}",
-        k.fx, k.fy, k.cx, k.cy, d.k1, d.k2, d.p1, d.p2, d.k3
+        "fx {} fy {} cx {} cy {}, {} distortion {names} = {}",
+        k.fx,
+        k.fy,
+        k.cx,
+        k.cy,
+        d.model_name(),
+        values.join(",")
     )
 }
 
@@ -231,7 +241,7 @@ fn report_json(
         "dataset": dataset.root.display().to_string(),
         "format": format!("{:?}", dataset.kind).to_lowercase(),
         "camera": {"source": source, "fx": k.fx, "fy": k.fy, "cx": k.cx, "cy": k.cy,
-                   "distortion": [d.k1, d.k2, d.p1, d.p2, d.k3]},
+                   "distortion": d.coefficients(), "distortion_model": d.model_name()},
         "method": args.method.name(),
         "frames": s.frames,
         "tracked": out.trajectory.len(),
