@@ -63,7 +63,7 @@ fn bench(dir: &std::path::Path) -> Result<(), String> {
     let mut trajectory = Trajectory::default();
     for (frame, e) in frames.iter().zip(&estimates) {
         if e.status != TrackStatus::Lost {
-            trajectory.push(frame.timestamp, e.pose_wc);
+            trajectory.push(frame.timestamp(), e.pose_wc);
         }
     }
     let cfg = EvalConfig {

@@ -76,8 +76,8 @@ fn tum_rendered_sequence_round_trips_images_depth_and_ground_truth() {
         let view = scene.render(&camera, w, h, &poses[i]);
         // RGB(g, g, g) must convert back to g exactly.
         let want = vofront::fixtures::image2d::to_gray8(&view.image);
-        assert_eq!(frame.image, want, "frame {i}");
-        let depth = frame.depth.expect("depth associated");
+        assert_eq!(frame.image(), &want, "frame {i}");
+        let depth = frame.depth().expect("depth associated");
         for (a, b) in depth.pixels().zip(view.depth.pixels()) {
             assert!((a[0] - b[0]).abs() <= TUM_DEPTH_QUANTUM * 0.5 + 1e-6);
         }
@@ -130,12 +130,12 @@ fn tum_association_respects_the_tolerance() {
         ]
     );
     let frame = data.load(0).expect("frame 0");
-    let depth = frame.depth.expect("depth");
+    let depth = frame.depth().expect("depth");
     assert_eq!(depth.get_pixel(0, 0)[0], 0.0, "0 stays invalid");
     assert_eq!(depth.get_pixel(3, 2)[0], 1.5, "3 * 2500 / 5000 m");
     // Colour is converted: a red-only image gives a darker grey that grows with red.
-    assert!(frame.image.get_pixel(7, 0)[0] > frame.image.get_pixel(1, 0)[0]);
-    assert!(data.load(1).expect("frame 1").depth.is_none());
+    assert!(frame.image().get_pixel(7, 0)[0] > frame.image().get_pixel(1, 0)[0]);
+    assert!(data.load(1).expect("frame 1").depth().is_none());
     // Ground truth: nearest stamp within 20 ms; frame 1 (10.1) is 30 ms from 10.13.
     let gt0 = data.ground_truth_at(0).expect("gt 0");
     assert_eq!(gt0.translation.vector, Vector3::new(1.0, 2.0, 3.0));
@@ -613,7 +613,7 @@ fn pose_strategy() -> impl Strategy<Value = (f64, Isometry3<f64>)> {
 }
 
 proptest! {
-    #![proptest_config(ProptestConfig::with_cases(64))]
+    #![proptest_config(ProptestConfig::with_cases(vofront_fixtures::proptest_cases(64)))]
 
     /// Writing then reading TUM text keeps every timestamp to 0.5 us (plus f64 rounding) and every pose to the
     /// 9 written decimals.

@@ -138,7 +138,7 @@ fn forward_backward_rejects_tracks_into_an_unrelated_image() {
 }
 
 proptest! {
-    #![proptest_config(ProptestConfig::with_cases(6))]
+    #![proptest_config(ProptestConfig::with_cases(vofront_fixtures::proptest_cases(6)))]
     #[test]
     fn random_shifts_are_tracked(dx in -8.0f64..8.0, dy in -8.0f64..8.0, seed in 0u64..100) {
         let (tracked, median, p80) = track_quality(dx, dy, seed);

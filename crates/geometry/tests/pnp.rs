@@ -69,7 +69,7 @@ const ROT_BOUND_DEG: f64 = 0.25;
 const TRANS_BOUND_M: f64 = 0.05;
 
 proptest! {
-    #![proptest_config(ProptestConfig::with_cases(common::proptest_cases(48)))]
+    #![proptest_config(ProptestConfig::with_cases(vofront_fixtures::proptest_cases(48)))]
 
     #[test]
     fn p3p_contains_the_true_pose(seed in 0u64..1_000_000) {
