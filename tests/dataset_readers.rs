@@ -165,7 +165,7 @@ fn missing_or_corrupt_frames_fail_alone() {
             .1
             .as_ref()
             .expect("0 loads")
-            .image
+            .image()
             .get_pixel(0, 0)[0],
         10
     );
@@ -182,7 +182,7 @@ fn missing_or_corrupt_frames_fail_alone() {
             .1
             .as_ref()
             .expect("3 loads")
-            .image
+            .image()
             .get_pixel(0, 0)[0],
         30
     );
@@ -297,7 +297,10 @@ fn image_folders_are_timed_by_fps_or_by_file_names() {
     assert_eq!(data.kind, DatasetKind::Images);
     let times: Vec<f64> = data.frames.iter().map(|f| f.timestamp).collect();
     assert_eq!(times, vec![0.0, 0.1, 0.2]);
-    assert_eq!(data.load(2).expect("frame 2").image.get_pixel(1, 1)[0], 20);
+    assert_eq!(
+        data.load(2).expect("frame 2").image().get_pixel(1, 1)[0],
+        20
+    );
     assert!(data.camera.is_none() && data.ground_truth.is_none());
 
     let stamped = TempDir::new("images-stamped");
@@ -305,7 +308,7 @@ fn image_folders_are_timed_by_fps_or_by_file_names() {
     stamped.grey_png("1305031102.175304.png", 4);
     let data = Dataset::open(&stamped.0).expect("open stamped");
     assert_eq!(data.frames[0].timestamp, 1305031102.175304);
-    assert_eq!(data.load(1).expect("frame 1").image.get_pixel(0, 0)[0], 5);
+    assert_eq!(data.load(1).expect("frame 1").image().get_pixel(0, 0)[0], 5);
     let bad = DatasetConfig {
         fps: Some(-5.0),
         ..DatasetConfig::default()
@@ -365,7 +368,10 @@ fn kitti_reads_calibration_times_images_and_poses() {
     );
     assert!(cam.distortion.is_identity());
     assert_eq!(data.frames[1].timestamp, 0.1036);
-    assert_eq!(data.load(2).expect("frame 2").image.get_pixel(0, 0)[0], 100);
+    assert_eq!(
+        data.load(2).expect("frame 2").image().get_pixel(0, 0)[0],
+        100
+    );
     assert!(matches!(
         data.load(1),
         Err(DatasetError::Image { index: 1, .. })
@@ -479,7 +485,10 @@ fn euroc_reads_camera_nanosecond_stamps_and_body_ground_truth() {
     );
     assert!((data.frames[0].timestamp - 1403636579.0 - 0.763555584).abs() < 1e-6);
     assert!((data.frames[1].timestamp - data.frames[0].timestamp - 0.049999872).abs() < 1e-6);
-    assert_eq!(data.load(1).expect("frame 1").image.get_pixel(3, 3)[0], 88);
+    assert_eq!(
+        data.load(1).expect("frame 1").image().get_pixel(3, 3)[0],
+        88
+    );
     // Body pose 5 ms before frame 0: found within the 20 ms tolerance, quaternion w first.
     let body = data.ground_truth_at(0).expect("gt");
     assert_eq!(
