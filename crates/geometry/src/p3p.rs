@@ -144,7 +144,7 @@ fn polish_depths(s: Vector3<f64>, cos: [f64; 3], dist2: [f64; 3]) -> Vector3<f64
         };
         let next = best - step;
         let norm = distance_residuals(&next, cos, dist2).0.norm();
-        if !(norm < best_norm) {
+        if norm.is_nan() || norm >= best_norm {
             break;
         }
         (best, best_norm) = (next, norm);
