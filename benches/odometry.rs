@@ -20,11 +20,8 @@ fn frames() -> Vec<Frame> {
         .enumerate()
         .map(|(i, pose)| {
             let view = room.render(&default_camera(), 640, 480, pose);
-            Frame {
-                timestamp: i as f64 / 30.0,
-                image: to_gray8(&view.image),
-                depth: Some(view.depth),
-            }
+            Frame::new(i as f64 / 30.0, to_gray8(&view.image), Some(view.depth))
+                .expect("rendered depth has the image's size")
         })
         .collect()
 }

@@ -59,7 +59,7 @@ fn bench(dir: &std::path::Path) -> Result<(), String> {
     let orb = Orb::new(cfg.orb.clone()).map_err(|e| e.to_string())?;
     let orb_start = Instant::now();
     for frame in &frames {
-        orb.detect_and_describe(&frame.image)
+        orb.detect_and_describe(frame.image())
             .map_err(|e| e.to_string())?;
     }
     let orb_ms = 1e3 * orb_start.elapsed().as_secs_f64() / frames.len().max(1) as f64;
@@ -74,7 +74,7 @@ fn bench(dir: &std::path::Path) -> Result<(), String> {
     let mut trajectory = Trajectory::default();
     for (frame, e) in frames.iter().zip(&estimates) {
         if e.status != TrackStatus::Lost {
-            trajectory.push(frame.timestamp, e.pose_wc);
+            trajectory.push(frame.timestamp(), e.pose_wc);
         }
     }
     let cfg = EvalConfig {

@@ -100,41 +100,104 @@ pub struct Correspondences {
     pub x2: Vec<nalgebra::Vector2<f64>>,
 }
 
-/// Reads a CSV of correspondences: columns `x1,y1,x2,y2`, further columns ignored, an optional
-/// header line (any first line whose first field is not a number), `#` comments skipped.
+/// One correspondence row, `x1,y1,x2,y2` in pixels (read by serde from the first four
+/// fields of a CSV record).
+#[derive(Debug, serde::Deserialize)]
+struct CorrespondenceRow {
+    x1: f64,
+    y1: f64,
+    x2: f64,
+    y2: f64,
+}
+
+/// The field separator of a correspondence file: the first of `,` `;` and tab that occurs on
+/// its first data line, else a space (runs of spaces are one separator).
+fn sniff_delimiter(text: &str) -> u8 {
+    let first = text
+        .lines()
+        .map(str::trim)
+        .find(|l| !l.is_empty() && !l.starts_with('#'))
+        .unwrap_or("");
+    [b',', b';', b'\t']
+        .into_iter()
+        .find(|&d| first.as_bytes().contains(&d))
+        .unwrap_or(b' ')
+}
+
+/// Reads a CSV of correspondences with the `csv` crate: columns `x1,y1,x2,y2` (pixels),
+/// further columns ignored, separated by commas, semicolons, tabs or spaces (the one the first
+/// data line uses), an optional header line (a first line whose first field is not a number),
+/// `#` comment lines and blank lines skipped.
+///
+/// ```
+/// let path = std::env::temp_dir().join(format!("vofront-doc-matches-{}.csv", std::process::id()));
+/// std::fs::write(&path, "x1,y1,x2,y2,score\n10,20,12.5,21,0.9\n# a comment\n30,40,31,42,0.8\n").unwrap();
+/// let c = vofront::input::load_correspondences(&path).unwrap();
+/// assert_eq!(c.x1.len(), 2);
+/// assert_eq!((c.x2[0].x, c.x2[1].y), (12.5, 42.0));
+/// std::fs::write(&path, "10,20,12.5\n").unwrap();
+/// let err = vofront::input::load_correspondences(&path).unwrap_err().to_string();
+/// assert!(err.ends_with(":1: expected four numbers x1,y1,x2,y2, got 3 fields"), "{err}");
+/// std::fs::remove_file(&path).unwrap();
+/// ```
 pub fn load_correspondences(path: &Path) -> Result<Correspondences, InputError> {
     let text = std::fs::read_to_string(path).map_err(|source| InputError::Read {
         path: path.into(),
         source,
     })?;
+    let parse_error = |line: usize, reason: String| InputError::Parse {
+        path: path.into(),
+        line,
+        reason,
+    };
+    let mut reader = csv::ReaderBuilder::new()
+        .has_headers(false)
+        .delimiter(sniff_delimiter(&text))
+        .comment(Some(b'#'))
+        .flexible(true)
+        .trim(csv::Trim::All)
+        .from_reader(text.as_bytes());
     let mut out = Correspondences::default();
     let mut header_allowed = true;
-    for (i, line) in text.lines().enumerate() {
-        let line = line.trim();
-        if line.is_empty() || line.starts_with('#') {
+    for record in reader.records() {
+        let record = record.map_err(|e| {
+            let line = e.position().map_or(0, |p| p.line() as usize);
+            parse_error(line, e.to_string())
+        })?;
+        let line = record.position().map_or(0, |p| p.line() as usize);
+        // Runs of spaces give empty fields between them: they are one separator.
+        let fields: csv::StringRecord = record.iter().filter(|f| !f.is_empty()).collect();
+        let Some(first) = fields.get(0) else {
+            continue;
+        };
+        if std::mem::take(&mut header_allowed) && first.parse::<f64>().is_err() {
             continue;
         }
-        let fields: Vec<&str> = line
-            .split([',', ' ', '\t', ';'])
-            .filter(|f| !f.is_empty())
-            .collect();
-        let numbers: Result<Vec<f64>, _> =
-            fields.iter().take(4).map(|f| f.parse::<f64>()).collect();
-        match numbers {
-            Ok(v) if v.len() == 4 => {
-                out.x1.push(nalgebra::Vector2::new(v[0], v[1]));
-                out.x2.push(nalgebra::Vector2::new(v[2], v[3]));
-            }
-            _ if header_allowed && fields.first().is_some_and(|f| f.parse::<f64>().is_err()) => {}
-            _ => {
-                return Err(InputError::Parse {
-                    path: path.into(),
-                    line: i + 1,
-                    reason: "expected four numbers x1,y1,x2,y2".into(),
-                })
-            }
+        if fields.len() < 4 {
+            return Err(parse_error(
+                line,
+                format!(
+                    "expected four numbers x1,y1,x2,y2, got {} fields",
+                    fields.len()
+                ),
+            ));
         }
-        header_allowed = false;
+        let four: csv::StringRecord = fields.iter().take(4).collect();
+        let row: CorrespondenceRow = four.deserialize(None).map_err(|e| {
+            let detail = match e.kind() {
+                csv::ErrorKind::Deserialize { err, .. } => match err.field() {
+                    Some(k) => format!("column {}: {}", k + 1, err.kind()),
+                    None => err.kind().to_string(),
+                },
+                other => format!("{other:?}"),
+            };
+            parse_error(
+                line,
+                format!("expected four numbers x1,y1,x2,y2 ({detail})"),
+            )
+        })?;
+        out.x1.push(nalgebra::Vector2::new(row.x1, row.y1));
+        out.x2.push(nalgebra::Vector2::new(row.x2, row.y2));
     }
     Ok(out)
 }
@@ -143,6 +206,69 @@ pub fn load_correspondences(path: &Path) -> Result<Correspondences, InputError> 
 mod tests {
     use super::*;
     use image::{ImageBuffer, Luma};
+
+    /// Writes `text` to a temporary file and reads it as correspondences.
+    fn read_matches(name: &str, text: &str) -> Result<Correspondences, InputError> {
+        let path =
+            std::env::temp_dir().join(format!("vofront-input-{name}-{}.csv", std::process::id()));
+        std::fs::write(&path, text).unwrap();
+        let out = load_correspondences(&path);
+        std::fs::remove_file(&path).ok();
+        out
+    }
+
+    #[test]
+    fn correspondences_accept_every_separator_header_comments_and_extra_columns() {
+        let want = |c: &Correspondences| {
+            assert_eq!(
+                c.x1,
+                vec![
+                    nalgebra::Vector2::new(1.0, 2.0),
+                    nalgebra::Vector2::new(5.0, 6.0)
+                ]
+            );
+            assert_eq!(
+                c.x2,
+                vec![
+                    nalgebra::Vector2::new(3.0, 4.5),
+                    nalgebra::Vector2::new(7.0, -8.0)
+                ]
+            );
+        };
+        want(&read_matches("comma", "x1,y1,x2,y2\n1,2,3,4.5\n5, 6, 7, -8\n").unwrap());
+        want(&read_matches("semi", "# from a tool\n1;2;3;4.5;0.9\n\n5;6;7;-8;0.1\n").unwrap());
+        want(&read_matches("tab", "u1\tv1\tu2\tv2\n1\t2\t3\t4.5\r\n5\t6\t7\t-8\r\n").unwrap());
+        want(&read_matches("space", "1   2 3  4.5\n5 6 7 -8 extra\n").unwrap());
+        assert_eq!(
+            read_matches("empty", "x1,y1,x2,y2\n").unwrap(),
+            Correspondences::default()
+        );
+    }
+
+    #[test]
+    fn bad_correspondence_lines_name_the_line_and_the_column() {
+        let err = |name: &str, text: &str| read_matches(name, text).unwrap_err().to_string();
+        // Only the first line may be a header.
+        let e = err("late-header", "1,2,3,4\nx1,y1,x2,y2\n");
+        assert!(
+            e.ends_with(":2: expected four numbers x1,y1,x2,y2 (column 1: invalid float literal)"),
+            "{e}"
+        );
+        let e = err("short", "x1,y1,x2,y2\n1,2,3,4\n1,2\n");
+        assert!(
+            e.ends_with(":3: expected four numbers x1,y1,x2,y2, got 2 fields"),
+            "{e}"
+        );
+        let e = err("word", "1,2,3,4\n5,6,seven,8\n");
+        assert!(
+            e.ends_with(":2: expected four numbers x1,y1,x2,y2 (column 3: invalid float literal)"),
+            "{e}"
+        );
+        assert!(matches!(
+            load_correspondences(Path::new("/nonexistent/matches.csv")),
+            Err(InputError::Read { .. })
+        ));
+    }
 
     #[test]
     fn depth_is_divided_by_the_scale_as_stored_in_8_and_16_bits() {

@@ -597,7 +597,7 @@ fn room_trajectory_stamped(n: usize) -> Trajectory {
 }
 
 proptest! {
-    #![proptest_config(ProptestConfig::with_cases(64))]
+    #![proptest_config(ProptestConfig::with_cases(vofront_fixtures::proptest_cases(64)))]
 
     /// Points mapped by a known similarity are mapped back exactly.
     #[test]

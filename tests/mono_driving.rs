@@ -28,11 +28,7 @@ fn mono_tracker_follows_the_rendered_drive() {
     let mut first_tracked = None;
     for (i, pose) in seq.poses_wc.iter().enumerate() {
         let timestamp = i as f64 / FRAME_RATE;
-        let frame = Frame {
-            timestamp,
-            image: to_gray8(&seq.render(i).image),
-            depth: None,
-        };
+        let frame = Frame::new(timestamp, to_gray8(&seq.render(i).image), None).expect("frame");
         let e = tracker.track(&frame);
         gt.push(timestamp, *pose);
         if e.status == TrackStatus::Lost {
@@ -72,16 +68,8 @@ fn mono_tracker_follows_the_rendered_drive() {
 fn featureless_frames_are_skipped_not_waited_on() {
     let seq = DrivingSequence::new(12, 12);
     let (w, h) = seq.size;
-    let blank = || vofront::dataset::Frame {
-        timestamp: 0.0,
-        image: image::GrayImage::from_pixel(w, h, image::Luma([128])),
-        depth: None,
-    };
-    let rendered = |i: usize| Frame {
-        timestamp: 0.0,
-        image: to_gray8(&seq.render(i).image),
-        depth: None,
-    };
+    let blank = || image::GrayImage::from_pixel(w, h, image::Luma([128]));
+    let rendered = |i: usize| to_gray8(&seq.render(i).image);
     // blank, r0, blank, r1 .. r6, blank, r7 .. r11
     let mut order: Vec<Option<usize>> = vec![None, Some(0), None];
     order.extend((1..7).map(Some));
@@ -92,8 +80,8 @@ fn featureless_frames_are_skipped_not_waited_on() {
         .iter()
         .enumerate()
         .map(|(k, which)| {
-            let mut frame = which.map_or_else(blank, rendered);
-            frame.timestamp = k as f64 / FRAME_RATE;
+            let image = which.map_or_else(blank, rendered);
+            let frame = Frame::new(k as f64 / FRAME_RATE, image, None).expect("frame");
             tracker.track(&frame).status
         })
         .collect();

@@ -159,7 +159,7 @@ fn format_text() -> impl Strategy<Value = String> {
 }
 
 proptest! {
-    #![proptest_config(ProptestConfig::with_cases(24))]
+    #![proptest_config(ProptestConfig::with_cases(vofront_fixtures::proptest_cases(24)))]
 
     #[test]
     fn decoders_and_parsers_never_panic(bytes in prop::collection::vec(any::<u8>(), 0..400), text in format_text()) {
@@ -297,20 +297,22 @@ proptest! {
 
     #[test]
     fn trackers_never_panic(frames in prop::collection::vec((gray(), 0u8..3, wild_f32()), 1..4), timestamps in prop::collection::vec(wild_f64(), 4)) {
-        let frames: Vec<Frame> = frames
-            .into_iter()
-            .zip(timestamps)
-            .map(|((image, depth_kind, z), timestamp)| {
-                let (w, h) = image.dimensions();
-                let depth = match depth_kind {
-                    0 => None,
-                    1 => Some(ImageBuffer::from_pixel(w, h, Luma([z]))),
-                    // Mismatched depth size (the public fields allow it).
-                    _ => Some(ImageBuffer::from_pixel(w / 2 + 1, h, Luma([2.0]))),
-                };
-                Frame { timestamp, image, depth }
-            })
-            .collect();
+        // Frame::new refuses a non-finite timestamp and a depth map of another size; the
+        // trackers get the frames it accepts.
+        let mut accepted = Vec::new();
+        for ((image, depth_kind, z), timestamp) in frames.into_iter().zip(timestamps) {
+            let (w, h) = image.dimensions();
+            let depth = match depth_kind {
+                0 => None,
+                1 => Some(ImageBuffer::from_pixel(w, h, Luma([z]))),
+                _ => Some(ImageBuffer::from_pixel(w / 2 + 1, h, Luma([2.0]))),
+            };
+            let valid = timestamp.is_finite() && depth.as_ref().map_or(true, |d| d.dimensions() == (w, h));
+            let frame = Frame::new(timestamp, image, depth);
+            prop_assert_eq!(frame.is_ok(), valid, "{:?}", frame.as_ref().err());
+            accepted.extend(frame.ok());
+        }
+        let frames = accepted;
         no_panic("DirectTracker::track", || {
             let mut t = DirectTracker::new(camera(), DirectTrackerConfig::default());
             for f in &frames {
@@ -346,7 +348,7 @@ fn texture(w: usize, h: usize, phase: f32) -> Plane {
 }
 
 proptest! {
-    #![proptest_config(ProptestConfig::with_cases(24))]
+    #![proptest_config(ProptestConfig::with_cases(vofront_fixtures::proptest_cases(24)))]
 
     /// Public configuration fields at their limits (zero, huge, NaN) on valid images.
     #[test]

@@ -128,8 +128,7 @@ fn a_textureless_stretch_is_lost_and_tracking_recovers() {
 fn frames_without_depth_are_lost_not_fatal() {
     let (dir, dataset) = sequence("nodepth", 160, 120);
     let mut tracker = direct_tracker(160);
-    let mut frame = dataset.load(0).unwrap();
-    frame.depth = None;
+    let frame = dataset.load(0).unwrap().without_depth();
     let e = tracker.track(&frame);
     assert_eq!(e.status, TrackStatus::Lost);
     assert!(e.message.unwrap().contains("depth"));

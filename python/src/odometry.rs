@@ -157,21 +157,8 @@ impl Odometry {
             }
             None => None,
         };
-        if let Some(d) = &depth {
-            if d.dimensions() != img.dimensions() {
-                return Err(bad(format!(
-                    "depth: size {:?} differs from the image size {:?} (width, height)",
-                    d.dimensions(),
-                    img.dimensions()
-                )));
-            }
-        }
         let timestamp = timestamp.unwrap_or(self.frames as f64);
-        let frame = Frame {
-            timestamp,
-            image: img,
-            depth,
-        };
+        let frame = Frame::new(timestamp, img, depth).map_err(|e| bad(e.to_string()))?;
         let tracker = &self.tracker;
         let estimate = release(py, || {
             let mut tracker = tracker

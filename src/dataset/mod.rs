@@ -27,7 +27,7 @@
 //! let data = Dataset::open(&dir).unwrap();
 //! assert_eq!(data.kind, DatasetKind::Tum);
 //! assert_eq!(data.frames.len(), 2);
-//! assert_eq!(data.load(0).unwrap().image.dimensions(), (4, 3));
+//! assert_eq!(data.load(0).unwrap().image().dimensions(), (4, 3));
 //! assert!(data.load(1).is_err()); // rgb/b.png is missing: that frame fails, the run goes on
 //! std::fs::remove_dir_all(&dir).unwrap();
 //! ```
@@ -116,6 +116,14 @@ pub enum DatasetError {
         /// The decoder error.
         source: image::ImageError,
     },
+    /// A listed frame's parts do not make a [`Frame`] (a non-finite timestamp).
+    #[error("frame {index}: {source}")]
+    Frame {
+        /// Frame index.
+        index: usize,
+        /// What is wrong.
+        source: FrameError,
+    },
     /// A depth map is not a single-channel 16-bit or 8-bit image or does not match the image size.
     #[error("frame {index}: {path}: {message}")]
     BadDepth {
@@ -174,15 +182,103 @@ pub struct FrameInfo {
     pub depth: Option<PathBuf>,
 }
 
-/// One loaded frame.
+/// One loaded frame: a finite capture time, an 8-bit grey image and, optionally, a metric
+/// depth map of the same size (checked by [`Frame::new`], so every tracker can index the
+/// depth with the image's pixel coordinates).
+///
+/// ```
+/// use image::{GrayImage, Luma};
+/// use vofront::dataset::{DepthImage, Frame, FrameError};
+/// let image = GrayImage::from_pixel(4, 3, Luma([90]));
+/// let frame = Frame::new(0.5, image.clone(), Some(DepthImage::from_pixel(4, 3, Luma([1.5])))).unwrap();
+/// assert_eq!((frame.timestamp(), frame.image().dimensions()), (0.5, (4, 3)));
+/// assert_eq!(frame.depth().unwrap().get_pixel(3, 2)[0], 1.5);
+///
+/// let small = DepthImage::new(2, 2);
+/// assert!(matches!(Frame::new(0.5, image.clone(), Some(small)), Err(FrameError::DepthSize { .. })));
+/// assert!(matches!(Frame::new(f64::NAN, image, None), Err(FrameError::Timestamp(_))));
+/// ```
 #[derive(Debug, Clone)]
 pub struct Frame {
+    timestamp: f64,
+    image: GrayImage,
+    depth: Option<DepthImage>,
+}
+
+/// Why [`Frame::new`] refused its parts.
+#[derive(Debug, Clone, PartialEq, Error)]
+pub enum FrameError {
+    /// The capture time is NaN or infinite.
+    #[error("timestamp {0} is not a finite number of seconds")]
+    Timestamp(f64),
+    /// The depth map's size differs from the image's (`(width, height)`, pixels).
+    #[error("depth is {depth:?}, image is {image:?}")]
+    DepthSize {
+        /// Image size.
+        image: (u32, u32),
+        /// Depth map size.
+        depth: (u32, u32),
+    },
+}
+
+impl Frame {
+    /// A frame at `timestamp` (seconds, finite) with its grey image and an optional metric
+    /// depth map (metres, `0.0` = no depth) of the image's size.
+    pub fn new(
+        timestamp: f64,
+        image: GrayImage,
+        depth: Option<DepthImage>,
+    ) -> Result<Self, FrameError> {
+        if !timestamp.is_finite() {
+            return Err(FrameError::Timestamp(timestamp));
+        }
+        if let Some(d) = &depth {
+            if d.dimensions() != image.dimensions() {
+                return Err(FrameError::DepthSize {
+                    image: image.dimensions(),
+                    depth: d.dimensions(),
+                });
+            }
+        }
+        Ok(Self {
+            timestamp,
+            image,
+            depth,
+        })
+    }
+
     /// Capture time, seconds.
-    pub timestamp: f64,
-    /// The image, converted to 8-bit grey.
-    pub image: GrayImage,
-    /// Metric depth (metres, 0 = invalid), same size as `image`.
-    pub depth: Option<DepthImage>,
+    pub fn timestamp(&self) -> f64 {
+        self.timestamp
+    }
+
+    /// The image, 8-bit grey.
+    pub fn image(&self) -> &GrayImage {
+        &self.image
+    }
+
+    /// Metric depth (metres, 0 = invalid), the image's size; `None` without depth.
+    pub fn depth(&self) -> Option<&DepthImage> {
+        self.depth.as_ref()
+    }
+
+    /// The same frame without its depth map (a monocular view of an RGB-D frame).
+    pub fn without_depth(self) -> Self {
+        Self {
+            depth: None,
+            ..self
+        }
+    }
+
+    /// The same frame at another capture time (seconds, finite).
+    pub fn with_timestamp(self, timestamp: f64) -> Result<Self, FrameError> {
+        Self::new(timestamp, self.image, self.depth)
+    }
+
+    /// `(timestamp, image, depth)`, moved out.
+    pub fn into_parts(self) -> (f64, GrayImage, Option<DepthImage>) {
+        (self.timestamp, self.image, self.depth)
+    }
 }
 
 /// Options of [`Dataset::open_with`].
@@ -285,13 +381,16 @@ impl Dataset {
         })?;
         let image = open_image(index, &info.image)?.into_luma8();
         let depth = match &info.depth {
-            Some(path) => Some(self.load_depth(index, path, image.dimensions())?),
+            Some(path) => Some(self.load_depth(index, path)?),
             None => None,
         };
-        Ok(Frame {
-            timestamp: info.timestamp,
-            image,
-            depth,
+        Frame::new(info.timestamp, image, depth).map_err(|source| match (source, &info.depth) {
+            (size @ FrameError::DepthSize { .. }, Some(path)) => DatasetError::BadDepth {
+                index,
+                path: path.clone(),
+                message: size.to_string(),
+            },
+            (source, _) => DatasetError::Frame { index, source },
         })
     }
 
@@ -309,32 +408,16 @@ impl Dataset {
         gt.nearest(t, self.ground_truth_tolerance).map(|(_, p)| *p)
     }
 
-    fn load_depth(
-        &self,
-        index: usize,
-        path: &Path,
-        size: (u32, u32),
-    ) -> Result<DepthImage, DatasetError> {
-        let bad = |message: String| DatasetError::BadDepth {
-            index,
-            path: path.to_path_buf(),
-            message,
-        };
+    /// The depth map of frame `index` in metres (its size is checked by [`Frame::new`]).
+    fn load_depth(&self, index: usize, path: &Path) -> Result<DepthImage, DatasetError> {
         let raw = open_image(index, path)?;
-        let depth = crate::input::depth_in_metres(&raw, self.depth_scale.unwrap_or(1.0))
-            .ok_or_else(|| {
-                bad(format!(
-                    "expected 16-bit or 8-bit grey, got {:?}",
-                    raw.color()
-                ))
-            })?;
-        if depth.dimensions() != size {
-            return Err(bad(format!(
-                "depth is {:?}, image is {size:?}",
-                depth.dimensions()
-            )));
-        }
-        Ok(depth)
+        crate::input::depth_in_metres(&raw, self.depth_scale.unwrap_or(1.0)).ok_or_else(|| {
+            DatasetError::BadDepth {
+                index,
+                path: path.to_path_buf(),
+                message: format!("expected 16-bit or 8-bit grey, got {:?}", raw.color()),
+            }
+        })
     }
 }
 

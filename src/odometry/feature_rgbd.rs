@@ -74,6 +74,36 @@ struct Keyframe {
 }
 
 /// Frame-to-keyframe ORB + PnP tracker for RGB-D sequences.
+///
+/// ```
+/// use vofront::dataset::Frame;
+/// use vofront::fixtures::image2d::to_gray8;
+/// use vofront::fixtures::scene::{default_camera, room_trajectory, Scene};
+/// use vofront::geometry::Pinhole;
+/// use vofront::odometry::{TrackStatus, Tracker};
+/// use vofront::odometry::feature_rgbd::{FeatureRgbdConfig, FeatureRgbdTracker};
+///
+/// // Four 320x240 RGB-D frames of a rendered room along a known camera path (T_wc).
+/// let mut camera = default_camera();
+/// camera.pinhole = Pinhole::new(262.5, 262.5, 159.5, 119.5).unwrap();
+/// let (room, poses) = (Scene::box_room(5), room_trajectory(4));
+/// let frames: Vec<Frame> = poses
+///     .iter()
+///     .enumerate()
+///     .map(|(i, pose)| {
+///         let view = room.render(&camera, 320, 240, pose);
+///         Frame::new(i as f64 / 30.0, to_gray8(&view.image), Some(view.depth)).unwrap()
+///     })
+///     .collect();
+///
+/// let mut tracker = FeatureRgbdTracker::new(camera, FeatureRgbdConfig::default()).unwrap();
+/// let last = frames.iter().map(|f| tracker.track(f)).last().unwrap();
+/// assert_eq!(last.status, TrackStatus::Ok);
+/// // The first frame is the origin: compare with the true motion since frame 0.
+/// let truth = poses[0].inverse() * poses[3];
+/// let error = (last.pose_wc.translation.vector - truth.translation.vector).norm();
+/// assert!(error < 0.01, "{error} m off after {:.3} m", truth.translation.vector.norm());
+/// ```
 pub struct FeatureRgbdTracker {
     cfg: FeatureRgbdConfig,
     orb: Orb,
@@ -102,7 +132,7 @@ impl FeatureRgbdTracker {
         features: Features,
         t_wc: Isometry3<f64>,
     ) -> Result<Keyframe, VoError> {
-        let depth = frame.depth.as_ref().ok_or(VoError::NoDepth)?;
+        let depth = frame.depth().ok_or(VoError::NoDepth)?;
         let (lo, hi) = self.cfg.depth_range;
         let points: Vec<Option<Point3<f64>>> = (0..features.len())
             .map(|i| {
@@ -144,7 +174,7 @@ impl Tracker for FeatureRgbdTracker {
     fn track(&mut self, frame: &Frame) -> FrameEstimate {
         let start = Instant::now();
         let predicted = self.slot.predict();
-        let features = match self.orb.detect_and_describe(&frame.image) {
+        let features = match self.orb.detect_and_describe(frame.image()) {
             Ok(f) => f,
             Err(e) => {
                 return self.slot.restart(

@@ -329,6 +329,41 @@ pub enum RunError {
 
 /// Tracks the frames of `dataset` allowed by `control`, handing each record to `sink` before
 /// the next frame is read. Unreadable frames are recorded (and sent) and skipped.
+///
+/// ```
+/// use std::sync::atomic::{AtomicBool, Ordering};
+/// use vofront::dataset::Dataset;
+/// use vofront::fixtures::scene::{default_camera, room_trajectory, Scene};
+/// use vofront::fixtures::tum::write_tum_sequence;
+/// use vofront::geometry::Pinhole;
+/// use vofront::odometry::direct::{DirectTracker, DirectTrackerConfig};
+/// use vofront::odometry::run::{run_with, FrameRecord, RunControl, TumSink};
+///
+/// // A six-frame TUM RGB-D folder of a rendered room (160x120).
+/// let dir = std::env::temp_dir().join(format!("vofront-doc-run-with-{}", std::process::id()));
+/// let mut camera = default_camera();
+/// camera.pinhole = Pinhole::new(131.25, 131.25, 79.5, 59.5).unwrap();
+/// write_tum_sequence(&dir, &Scene::box_room(5), &camera, (160, 120), &room_trajectory(6)).unwrap();
+/// let dataset = Dataset::open(&dir).unwrap();
+///
+/// // Every tracked frame becomes a TUM line as it finishes; the closure raises the stop flag
+/// // after frame 3, so the run ends there (as a SIGINT handler would).
+/// let stop = AtomicBool::new(false);
+/// let mut tum_text = Vec::new();
+/// let mut stop_after_3 = |r: &FrameRecord| {
+///     stop.store(r.index == 3, Ordering::Relaxed);
+///     Ok(())
+/// };
+/// let mut sinks = (TumSink::new(&mut tum_text), &mut stop_after_3);
+/// let control = RunControl { max_frames: None, stop: Some(&stop) };
+/// let mut tracker = DirectTracker::new(camera, DirectTrackerConfig::default());
+/// let out = run_with(&dataset, &mut tracker, &control, &mut sinks).unwrap();
+/// drop(sinks);
+/// assert!(out.summary.interrupted);
+/// assert_eq!((out.records.len(), out.trajectory.len()), (4, 4));
+/// assert_eq!(String::from_utf8(tum_text).unwrap().lines().count(), 4);
+/// std::fs::remove_dir_all(&dir).unwrap();
+/// ```
 pub fn run_with(
     dataset: &Dataset,
     tracker: &mut dyn Tracker,
@@ -392,6 +427,28 @@ fn drive<E>(
 
 /// Tracks the first `max_frames` frames of `dataset` (all when `None`) in memory, calling
 /// `progress(done, total)` after each: [`run_with`] without sink or stop flag.
+///
+/// ```
+/// use vofront::dataset::Dataset;
+/// use vofront::fixtures::scene::{default_camera, room_trajectory, Scene};
+/// use vofront::fixtures::tum::write_tum_sequence;
+/// use vofront::geometry::Pinhole;
+/// use vofront::odometry::direct::{DirectTracker, DirectTrackerConfig};
+/// use vofront::odometry::run::run;
+///
+/// // A five-frame TUM RGB-D folder of a rendered room (160x120) with its ground truth.
+/// let dir = std::env::temp_dir().join(format!("vofront-doc-run-{}", std::process::id()));
+/// let mut camera = default_camera();
+/// camera.pinhole = Pinhole::new(131.25, 131.25, 79.5, 59.5).unwrap();
+/// write_tum_sequence(&dir, &Scene::box_room(5), &camera, (160, 120), &room_trajectory(5)).unwrap();
+/// let dataset = Dataset::open(&dir).unwrap();
+///
+/// let mut tracker = DirectTracker::new(camera, DirectTrackerConfig::default());
+/// let out = run(&dataset, &mut tracker, None, |done, total| assert!(done <= total));
+/// assert_eq!((out.summary.frames, out.summary.lost), (5, 0));
+/// assert_eq!(out.trajectory.len(), 5); // camera-to-world, first frame at the origin
+/// std::fs::remove_dir_all(&dir).unwrap();
+/// ```
 pub fn run(
     dataset: &Dataset,
     tracker: &mut dyn Tracker,

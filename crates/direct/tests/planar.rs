@@ -233,7 +233,7 @@ fn affine_warp_with_brightness_change_is_recovered() {
 }
 
 proptest! {
-    #![proptest_config(ProptestConfig::with_cases(12))]
+    #![proptest_config(ProptestConfig::with_cases(vofront_fixtures::proptest_cases(12)))]
     #[test]
     fn random_subpixel_shifts_are_recovered(dx in -4.0f64..4.0, dy in -4.0f64..4.0, seed in 0u64..1000) {
         let (i1, i2) = shifted_pair(seed, dx, dy);

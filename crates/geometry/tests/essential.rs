@@ -32,7 +32,7 @@ fn rays(scene: &common::Scene) -> (Vec<Vector3<f64>>, Vec<Vector3<f64>>) {
 }
 
 proptest! {
-    #![proptest_config(ProptestConfig::with_cases(common::proptest_cases(64)))]
+    #![proptest_config(ProptestConfig::with_cases(vofront_fixtures::proptest_cases(64)))]
 
     #[test]
     fn five_point_solutions_are_essential_and_contain_truth(seed in 0u64..1_000_000) {

@@ -79,7 +79,7 @@ fn pnp_scene(seed: u64) -> (Isometry3<f64>, Vec<Point3<f64>>, Vec<Vector2<f64>>)
 }
 
 proptest! {
-    #![proptest_config(ProptestConfig::with_cases(common::proptest_cases(12)))]
+    #![proptest_config(ProptestConfig::with_cases(vofront_fixtures::proptest_cases(12)))]
 
     /// Bounds: 0.3 px at ~190 px/rad is ~0.1 mrad per point; with 120 inliers the pose is good
     /// to a few hundredths of a degree and millimetres, the bounds leave a factor ~5.

@@ -84,7 +84,7 @@ fn along_normal_pose(
 }
 
 proptest! {
-    #![proptest_config(ProptestConfig::with_cases(common::proptest_cases(48)))]
+    #![proptest_config(ProptestConfig::with_cases(vofront_fixtures::proptest_cases(48)))]
 
     #[test]
     fn decomposition_and_chirality_recover_planar_motion(seed in 0u64..1_000_000) {

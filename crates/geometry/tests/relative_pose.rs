@@ -31,7 +31,7 @@ const MIN_TRIANGULATED: f64 = 0.7;
 const REPROJ_BOUND_PX: f64 = 3.0;
 
 proptest! {
-    #![proptest_config(ProptestConfig::with_cases(common::proptest_cases(40)))]
+    #![proptest_config(ProptestConfig::with_cases(vofront_fixtures::proptest_cases(40)))]
 
     #[test]
     fn general_scene_with_outliers_gives_accurate_pose(seed in 0u64..1_000_000, outliers in 0.0f64..0.5) {

@@ -260,7 +260,7 @@ fn a_prediction_seeds_tracks_beyond_the_reach_of_the_pyramid() {
 }
 
 proptest! {
-    #![proptest_config(ProptestConfig::with_cases(6))]
+    #![proptest_config(ProptestConfig::with_cases(vofront_fixtures::proptest_cases(6)))]
     #[test]
     fn random_shifts_are_tracked(dx in -8.0f64..8.0, dy in -8.0f64..8.0, seed in 0u64..100) {
         let (tracked, median, p80) = track_quality(dx, dy, seed);

@@ -204,6 +204,51 @@ impl<S, Y> LmOutcome<S, Y> {
 }
 
 /// Runs Levenberg-Marquardt on `problem` from `x0`; see the module documentation.
+///
+/// ```
+/// use nalgebra::{SVector, Vector2};
+/// use vofront_robust::{levenberg_marquardt, Convergence, LmConfig, LmProblem, NormalEquations};
+///
+/// /// Exponential decay `y = a exp(-b x)` through samples: state `(a, b)`, one residual
+/// /// `r_i = a exp(-b x_i) - y_i` per sample.
+/// struct Decay {
+///     samples: Vec<(f64, f64)>,
+///     at: Vector2<f64>,
+/// }
+/// impl LmProblem for Decay {
+///     type State = Vector2<f64>;
+///     type System = NormalEquations<2>;
+///     fn evaluate(&mut self, state: &Vector2<f64>) -> usize {
+///         self.at = *state;
+///         self.samples.len()
+///     }
+///     fn cost(&self) -> f64 {
+///         let r = |&(x, y): &(f64, f64)| self.at[0] * (-self.at[1] * x).exp() - y;
+///         self.samples.iter().map(|s| r(s).powi(2)).sum::<f64>() / 2.0
+///     }
+///     fn linearize(&mut self) -> NormalEquations<2> {
+///         let mut system = NormalEquations::new();
+///         for &(x, y) in &self.samples {
+///             let e = (-self.at[1] * x).exp();
+///             let jacobian = SVector::from([e, -self.at[0] * x * e]);
+///             system.add(&jacobian, self.at[0] * e - y, 1.0);
+///         }
+///         system
+///     }
+///     fn retract(&self, state: &Vector2<f64>, step: &SVector<f64, 2>) -> Vector2<f64> {
+///         state + step
+///     }
+///     fn step_norm(&self, step: &SVector<f64, 2>) -> f64 {
+///         step.norm()
+///     }
+/// }
+///
+/// let samples = (0..20).map(|i| (0.2 * i as f64, 3.0 * (-0.14 * i as f64).exp())).collect();
+/// let mut problem = Decay { samples, at: Vector2::zeros() };
+/// let fit = levenberg_marquardt(&mut problem, Vector2::new(1.0, 0.1), &LmConfig::default()).unwrap();
+/// assert!((fit.state - Vector2::new(3.0, 0.7)).norm() < 1e-6, "{}", fit.state);
+/// assert!(fit.cost() < 1e-12 && fit.reason != Convergence::MaxIterations);
+/// ```
 pub fn levenberg_marquardt<P: LmProblem>(
     problem: &mut P,
     x0: P::State,

@@ -143,6 +143,30 @@ enum State {
 }
 
 /// Monocular ORB tracker with an arbitrary but consistent scale (per initialisation).
+///
+/// ```
+/// use vofront::dataset::Frame;
+/// use vofront::fixtures::driving::{DrivingSequence, FRAME_RATE};
+/// use vofront::fixtures::image2d::to_gray8;
+/// use vofront::geometry::lie::direction_angle_deg;
+/// use vofront::odometry::mono::{MonoConfig, MonoTracker};
+/// use vofront::odometry::{TrackStatus, Tracker};
+///
+/// // Eight grey frames of a rendered street drive with exact camera poses (T_wc).
+/// let drive = DrivingSequence::new(3, 8);
+/// let mut tracker = MonoTracker::new(drive.camera, MonoConfig::default()).unwrap();
+/// let mut last = None;
+/// for i in 0..8 {
+///     let frame = Frame::new(i as f64 / FRAME_RATE, to_gray8(&drive.render(i).image), None).unwrap();
+///     last = Some(tracker.track(&frame));
+/// }
+/// let last = last.unwrap();
+/// assert_eq!(last.status, TrackStatus::Ok);
+/// // The scale is arbitrary; the direction travelled since frame 0 is not.
+/// let truth = drive.poses_wc[0].inverse() * drive.poses_wc[7];
+/// let angle = direction_angle_deg(&last.pose_wc.translation.vector, &truth.translation.vector);
+/// assert!(angle < 5.0, "{angle} deg");
+/// ```
 pub struct MonoTracker {
     cfg: MonoConfig,
     orb: Orb,
@@ -370,7 +394,7 @@ impl Tracker for MonoTracker {
     fn track(&mut self, frame: &Frame) -> FrameEstimate {
         let start = Instant::now();
         let predicted = self.motion.predict().unwrap_or_else(Isometry3::identity);
-        let current = match self.orb.detect_and_describe(&frame.image) {
+        let current = match self.orb.detect_and_describe(frame.image()) {
             Ok(f) => f,
             Err(e) => return Self::skipped(predicted, e.to_string(), start),
         };
@@ -443,7 +467,7 @@ impl Tracker for MonoTracker {
                 map,
                 first_residual,
             } => {
-                let size = frame.image.dimensions();
+                let size = frame.image().dimensions();
                 self.track_map(map, first_residual, current, size, predicted, start)
             }
         }

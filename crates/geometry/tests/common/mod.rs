@@ -6,15 +6,6 @@ use rand::rngs::StdRng;
 use rand::{Rng, SeedableRng};
 use vofront_geometry::{Camera, Pinhole};
 
-/// Cases of a property test: `PROPTEST_CASES` when set (a wide exploration), else `default`
-/// (`ProptestConfig::with_cases` alone would ignore the variable).
-pub fn proptest_cases(default: u32) -> u32 {
-    std::env::var("PROPTEST_CASES")
-        .ok()
-        .and_then(|v| v.parse().ok())
-        .unwrap_or(default)
-}
-
 /// Camera of the tests (TUM-like, distortion-free).
 pub fn camera() -> Camera {
     Camera::pinhole(Pinhole::new(520.0, 520.0, 320.0, 240.0).expect("valid intrinsics"))
