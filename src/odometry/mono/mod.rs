@@ -1,11 +1,11 @@
 //! Monocular feature tracker: two-view initialisation, a local map of keyframes and points,
 //! PnP tracking against it.
 //!
-//! 1. Initialisation ([`init`]): the first frame with enough features is the reference; later
+//! 1. Initialisation (`init`): the first frame with enough features is the reference; later
 //!    frames are matched to it until the parallax allows a two-view map. A frame with too few
 //!    features is skipped (never made the reference), and a reference that no longer matches
 //!    the current frame is replaced by it.
-//! 2. Tracking: every point of the local map ([`map`]: the points observed by the window of
+//! 2. Tracking: every point of the local map (`map`: the points observed by the window of
 //!    recent keyframes) is projected with the constant-velocity prediction `pi(K T_cw' P_w)`
 //!    and matched to the current features around it; PnP RANSAC with Huber refinement
 //!    (motion-only) gives `T_cw`, `T_wc = T_cw^-1`.
