@@ -1,8 +1,8 @@
 //! The monocular tracker on the rendered driving sequence (10 Hz, 1 m per frame, a straight
 //! stretch then a 90 degree right turn between facades and parked boxes): every frame after
-//! the initialisation is tracked and the Sim(3)-aligned trajectory stays within 1.5% of the
-//! path length (measured: 1.05%; issue 13 asks for 0.5%, which needs the local bundle
-//! adjustment that is not in this tracker yet).
+//! the initialisation is tracked and the Sim(3)-aligned trajectory stays within 1% of the
+//! path length (measured: 0.60% with the local bundle adjustment, 1.05% before it; issue 13
+//! asks for 0.5%). After a segment break the new map keeps the speed of the old one.
 
 use vofront::dataset::Frame;
 use vofront::eval::{ate, rpe, Alignment, EvalConfig};
@@ -17,7 +17,7 @@ const FRAMES: usize = 44;
 /// Frames the tracker may wait for parallax before the map exists.
 const MAX_INIT_FRAMES: usize = 4;
 /// ATE bound, percent of the path length.
-const MAX_ATE_PERCENT: f64 = 1.5;
+const MAX_ATE_PERCENT: f64 = 1.0;
 
 #[test]
 fn mono_tracker_follows_the_rendered_drive() {
@@ -95,5 +95,60 @@ fn featureless_frames_are_skipped_not_waited_on() {
     assert!(
         (10..15).any(|k| statuses[k] != TrackStatus::Lost),
         "{statuses:?}"
+    );
+}
+
+/// Issue 13: after a loss the new map shares nothing with the lost one (the street is
+/// retextured: no old point can be matched), so its scale cannot be joined by points. It is
+/// set from the motion model instead: the steps of the new segment have the length of the
+/// old segment's steps, where a unit baseline would make them arbitrary.
+#[test]
+fn a_segment_break_keeps_the_speed_of_the_motion_model() {
+    const FRAMES: usize = 24;
+    let before = DrivingSequence::new(21, FRAMES);
+    let after = DrivingSequence::new(22, FRAMES);
+    let (w, h) = before.size;
+    let blank = || image::GrayImage::from_pixel(w, h, image::Luma([128]));
+    let mut tracker = MonoTracker::new(before.camera, MonoConfig::default()).expect("tracker");
+    let estimates: Vec<_> = (0..FRAMES)
+        .map(|i| {
+            let image = match i {
+                0..10 => to_gray8(&before.render(i).image),
+                10..12 => blank(),
+                _ => to_gray8(&after.render(i).image),
+            };
+            let frame = Frame::new(i as f64 / FRAME_RATE, image, None).expect("frame");
+            tracker.track(&frame)
+        })
+        .collect();
+    let restart = (12..FRAMES)
+        .find(|&i| estimates[i].status == TrackStatus::Reinitialised)
+        .expect("a new map after the blank frames");
+    let message = estimates[restart].message.clone().unwrap_or_default();
+    assert!(message.contains("segment break"), "{message}");
+    assert!(message.contains("motion model"), "{message}");
+    // Step lengths (map units per frame) of consecutive tracked frames in each segment.
+    let steps = |range: std::ops::Range<usize>| -> Vec<f64> {
+        range
+            .filter(|&i| estimates[i - 1].status != TrackStatus::Lost)
+            .filter(|&i| estimates[i].status != TrackStatus::Lost)
+            .map(|i| {
+                (estimates[i].pose_wc.translation.vector
+                    - estimates[i - 1].pose_wc.translation.vector)
+                    .norm()
+            })
+            .collect()
+    };
+    let median = |mut v: Vec<f64>| {
+        assert!(!v.is_empty());
+        v.sort_by(f64::total_cmp);
+        v[v.len() / 2]
+    };
+    let old = median(steps(MAX_INIT_FRAMES + 2..10));
+    let new = median(steps(restart + 1..FRAMES));
+    let ratio = new / old;
+    assert!(
+        (0.8..1.25).contains(&ratio),
+        "steps {new:.4} after the break, {old:.4} before (ratio {ratio:.3})"
     );
 }

@@ -5,6 +5,8 @@
 //! Every stored and predicted pose is renormalised ([`normalized`]): this feedback loop would
 //! otherwise compound rounding until the rotation quaternion visibly shrinks.
 
+use std::collections::VecDeque;
+
 use nalgebra::Isometry3;
 use vofront_geometry::lie::normalized;
 
@@ -13,7 +15,12 @@ use vofront_geometry::lie::normalized;
 pub struct ConstantVelocity {
     last: Option<Isometry3<f64>>,
     velocity: Option<Isometry3<f64>>,
+    /// Lengths of the last [`RECENT_STEPS`] steps, oldest first.
+    recent: VecDeque<f64>,
 }
+
+/// Steps over which [`ConstantVelocity::step_length`] takes its median.
+const RECENT_STEPS: usize = 5;
 
 impl ConstantVelocity {
     /// Records the pose `T_wc` of the newest frame.
@@ -21,11 +28,38 @@ impl ConstantVelocity {
         let t_wc = normalized(&t_wc);
         self.velocity = self.last.map(|prev| normalized(&(prev.inverse() * t_wc)));
         self.last = Some(t_wc);
+        if let Some(v) = self.velocity {
+            if self.recent.len() == RECENT_STEPS {
+                self.recent.pop_front();
+            }
+            self.recent.push_back(v.translation.vector.norm());
+        }
     }
 
     /// Forgets the velocity (after tracking was lost), keeping the last pose.
     pub fn reset_velocity(&mut self) {
         self.velocity = None;
+    }
+
+    /// Restarts at `t_w2` with the motion from `t_w1` spread evenly over `frames` steps:
+    /// velocity `(exp(log(R_12) / n), t_12 / n)` with `T_12 = T_w1^-1 T_w2`, `n = frames`
+    /// (at least 1).
+    pub fn restart(&mut self, t_w1: &Isometry3<f64>, t_w2: &Isometry3<f64>, frames: usize) {
+        let n = frames.max(1) as f64;
+        let t_12 = t_w1.inverse() * t_w2;
+        let step = Isometry3::new(t_12.translation.vector / n, t_12.rotation.scaled_axis() / n);
+        self.last = Some(normalized(t_w2));
+        self.velocity = Some(normalized(&step));
+        self.recent.clear();
+        self.recent.push_back(step.translation.vector.norm());
+    }
+
+    /// Typical step length: the median of `|t(T_prev^-1 T_next)|` over the last
+    /// five updates (map units per frame; one poorly located frame does not set
+    /// it); `None` before any step.
+    pub fn step_length(&self) -> Option<f64> {
+        let mut steps: Vec<f64> = self.recent.iter().copied().collect();
+        crate::robust::median_in_place(&mut steps)
     }
 
     /// Predicted `T_wc` of the next frame: the last pose moved by the last step, or the last
@@ -59,6 +93,23 @@ mod tests {
             model.update(next);
         }
         assert!((model.predict().unwrap().rotation.norm() - 1.0).abs() < 1e-12);
+    }
+
+    #[test]
+    fn restart_spreads_the_pair_motion_over_its_frames() {
+        // Three steps of a screw motion between the pair: the velocity is one step, so the
+        // prediction is the fourth pose; the step length is one step's translation.
+        let step = Isometry3::new(Vector3::new(0.02, 0.0, 0.3), Vector3::new(0.0, 0.02, 0.0));
+        let t_w1 = Isometry3::new(Vector3::new(1.0, 2.0, 3.0), Vector3::new(0.1, 0.0, 0.0));
+        let t_w2 = t_w1 * step * step * step;
+        let mut model = ConstantVelocity::default();
+        model.restart(&t_w1, &t_w2, 3);
+        let predicted = model.predict().unwrap();
+        let truth = t_w2 * step;
+        // The chord of three screw steps is not three steps: within (R - I) t of one.
+        assert!((predicted.translation.vector - truth.translation.vector).norm() < 0.01);
+        assert!(predicted.rotation.angle_to(&truth.rotation) < 1e-9);
+        assert!((model.step_length().unwrap() - step.translation.vector.norm()).abs() < 0.01);
     }
 
     #[test]

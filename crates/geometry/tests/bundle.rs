@@ -254,3 +254,27 @@ fn bad_input_gives_typed_errors() {
     // The input is untouched by a failed call.
     assert_eq!(p.poses, w.problem.poses);
 }
+
+#[test]
+fn results_do_not_depend_on_the_thread_count() {
+    // The normal equations and the cost are summed in fixed chunks: a window solved on one
+    // thread and on four gives the same bits (a tracker built on it is repeatable).
+    let mut w = forward_window(3, 10, 3000, NOISE_PX, 0.1);
+    perturb(&mut w.problem, 5, 2, 0.3f64.to_radians(), 0.03, 0.05);
+    let solve = |threads: usize| {
+        let mut problem = w.problem.clone();
+        let pool = rayon::ThreadPoolBuilder::new()
+            .num_threads(threads)
+            .build()
+            .unwrap();
+        let report = pool
+            .install(|| bundle_adjust(&mut problem, &BundleConfig::default()))
+            .unwrap();
+        (problem, report)
+    };
+    let (one, report_one) = solve(1);
+    let (four, report_four) = solve(4);
+    assert!(report_one.iterations > 1, "{report_one:?}");
+    assert_eq!(report_one, report_four);
+    assert_eq!(one, four);
+}

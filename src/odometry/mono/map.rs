@@ -97,6 +97,17 @@ impl LocalMap {
         self.keyframes.back()
     }
 
+    /// Distance between the camera centres of the two newest keyframes (map units); `None`
+    /// with fewer than two.
+    pub fn baseline(&self) -> Option<f64> {
+        let n = self.keyframes.len();
+        let (a, b) = (
+            self.keyframes.get(n.checked_sub(2)?)?,
+            self.keyframes.get(n - 1)?,
+        );
+        Some((a.centre() - b.centre()).norm())
+    }
+
     /// Adds a keyframe with no points yet; returns its index in the window.
     pub fn push_keyframe(&mut self, t_wc: Isometry3<f64>, features: Features) -> usize {
         let n = features.len();
@@ -148,7 +159,7 @@ impl LocalMap {
     }
 
     /// Window index of keyframe `id`.
-    fn index_of(&self, id: usize) -> Option<usize> {
+    pub fn index_of(&self, id: usize) -> Option<usize> {
         let first = self.keyframes.front()?.id;
         let k = id.checked_sub(first)?;
         (k < self.keyframes.len()).then_some(k)
@@ -219,6 +230,7 @@ impl LocalMap {
             };
             let (a, b) = (&self.keyframes[other], &self.keyframes[newest]);
             let (free_a, free_b) = (free(a), free(b));
+            let t_ba = b.t_wc.inverse() * a.t_wc;
             let da: Vec<Descriptor> = free_a
                 .iter()
                 .map(|&f| a.features.descriptors()[f as usize])
@@ -227,9 +239,9 @@ impl LocalMap {
                 .iter()
                 .map(|&f| b.features.descriptors()[f as usize])
                 .collect();
-            let t_ba = b.t_wc.inverse() * a.t_wc;
+            let matches = match_descriptors(&da, &db, matching);
             let mut new_points = Vec::new();
-            for m in match_descriptors(&da, &db, matching) {
+            for m in matches {
                 let (fa, fb) = (free_a[m.query as usize], free_b[m.train as usize]);
                 let (ua, ub) = (
                     feature_pixel(&a.features, fa),
@@ -276,8 +288,21 @@ impl LocalMap {
         }
     }
 
+    /// Unlinks the observation of `point` by feature `f` of keyframe `kid` (an outlier).
+    pub fn unobserve(&mut self, point: PointId, kid: usize, f: u32) {
+        if let Some(p) = self.points.get_mut(&point) {
+            p.observations.retain(|&o| o != (kid, f));
+        }
+        if let Some(k) = self.index_of(kid) {
+            let slot = &mut self.keyframes[k].point_of[f as usize];
+            if *slot == Some(point) {
+                *slot = None;
+            }
+        }
+    }
+
     /// Removes a point and its keyframe links.
-    fn remove_point(&mut self, id: PointId) {
+    pub fn remove_point(&mut self, id: PointId) {
         let Some(p) = self.points.remove(&id) else {
             return;
         };

@@ -1,5 +1,5 @@
 //! Monocular feature tracker: two-view initialisation, a local map of keyframes and points,
-//! PnP tracking against it.
+//! PnP tracking against it, local bundle adjustment.
 //!
 //! 1. Initialisation (`init`): the first frame with enough features is the reference; later
 //!    frames are matched to it until the parallax allows a two-view map. A frame with too few
@@ -8,18 +8,26 @@
 //! 2. Tracking: every point of the local map (`map`: the points observed by the window of
 //!    recent keyframes) is projected with the constant-velocity prediction `pi(K T_cw' P_w)`
 //!    and matched to the current features around it; PnP RANSAC with Huber refinement
-//!    (motion-only) gives `T_cw`, `T_wc = T_cw^-1`.
+//!    (motion-only) gives `T_cw`, `T_wc = T_cw^-1`. The points are then matched again in a
+//!    narrow window (`relocate_window_px`) around that pose and PnP repeated; the pose with
+//!    more inliers is kept.
 //! 3. Keyframes are decided without metric units: a new one is taken when the median parallax
 //!    of the tracked points between the last keyframe's and the current camera centres,
 //!    `angle(P - C_kf, P - C_cur)`, reaches `keyframe_parallax_deg`, when the tracked ratio
 //!    (inliers over the last keyframe's points) falls under the policy's `min_overlap`, or on
-//!    the policy's rotation and residual tests. A keyframe adds observations, triangulates new
-//!    points against its neighbours, refines the structure and culls points.
-//! 4. When PnP fails the frame is lost and initialisation starts again (from that frame if it
-//!    has enough features), placed at the motion model's guess, with the new map's scale
-//!    joined to the lost one where they overlap; when they do not, the reinitialised frame's
-//!    message says the segment is not joined.
+//!    the policy's rotation and residual tests, and only from a pose with at least
+//!    `min_keyframe_inliers` inliers (a weakly supported pose may be wrong, and points built
+//!    on it would make later frames agree with the error). A keyframe adds observations,
+//!    triangulates new points against its neighbours, refines the structure, culls points and
+//!    runs the local bundle adjustment (`adjust`).
+//! 4. When PnP fails the frame is lost; the motion model coasts through lost frames (up to
+//!    `MAX_COAST_FRAMES`) and initialisation starts again (from that frame if it has enough
+//!    features), placed at the motion model's pose, with the new map's scale joined to the
+//!    lost one where they overlap; where they do not (a segment break, said in the
+//!    reinitialised frame's message), the new baseline is the motion model's median step
+//!    length times the frames it spans, so that the trajectory keeps its speed.
 
+mod adjust;
 mod init;
 mod map;
 
@@ -27,8 +35,9 @@ use std::time::Instant;
 
 use nalgebra::{Isometry3, Point3};
 use vofront_features::{Features, Match, MatchConfig, Orb, OrbConfig};
+use vofront_geometry::bundle::BundleConfig;
 use vofront_geometry::pnp::PnpConfig;
-use vofront_geometry::{Camera, RelativePoseConfig};
+use vofront_geometry::{Camera, RansacConfig, RelativePoseConfig};
 
 use super::keyframe::{KeyframePolicy, KeyframeView};
 use super::motion::ConstantVelocity;
@@ -57,6 +66,8 @@ pub struct MonoConfig {
     pub min_init_parallax_deg: f64,
     /// Fewest PnP inliers for a tracked frame.
     pub min_inliers: usize,
+    /// Fewest PnP inliers for a frame to become a keyframe (and extend the map).
+    pub min_keyframe_inliers: usize,
     /// Rotation, tracked-ratio (`min_overlap`) and residual tests of the keyframe decision;
     /// its metric translation test is off by default (map units mean nothing in monocular).
     pub keyframe: KeyframePolicy,
@@ -75,6 +86,15 @@ pub struct MonoConfig {
     pub max_init_frames: usize,
     /// Fewest old-map points matched to the new map to join their scales after a loss.
     pub min_scale_matches: usize,
+    /// Search radius of the second matching pass around the first located pose, pixels
+    /// (`None`: one pass).
+    pub relocate_window_px: Option<f32>,
+    /// Matching of free features between keyframes for new points (brute force, then the
+    /// reprojection and parallax tests of triangulation).
+    pub triangulation_matching: MatchConfig,
+    /// Local bundle adjustment of the window after each keyframe (module `adjust`; its
+    /// `fixed_poses` is always the two oldest keyframes); `None` turns it off.
+    pub local_ba: Option<BundleConfig>,
 }
 
 impl Default for MonoConfig {
@@ -90,10 +110,20 @@ impl Default for MonoConfig {
             },
             window_px: 24.0,
             relative: RelativePoseConfig::default(),
-            pnp: PnpConfig::default(),
+            // ORB positions at pyramid level k are uncertain by about 1.2^k pixels: on real
+            // footage a third of the right matches lie 2-4 px from the located pose, and a
+            // 2 px gate drops them.
+            pnp: PnpConfig {
+                ransac: RansacConfig {
+                    threshold: 3.0,
+                    ..PnpConfig::default().ransac
+                },
+                ..PnpConfig::default()
+            },
             min_init_points: 80,
             min_init_parallax_deg: 1.0,
             min_inliers: 25,
+            min_keyframe_inliers: 50,
             keyframe: KeyframePolicy {
                 max_relative_translation: f64::INFINITY,
                 min_overlap: 0.5,
@@ -106,9 +136,18 @@ impl Default for MonoConfig {
             triangulation_neighbours: 2,
             max_init_frames: 30,
             min_scale_matches: 12,
+            relocate_window_px: Some(4.0),
+            triangulation_matching: MatchConfig {
+                ratio: Some(0.8),
+                ..MatchConfig::default()
+            },
+            local_ba: Some(BundleConfig::default()),
         }
     }
 }
+
+/// Lost frames through which the motion model keeps its velocity.
+const MAX_COAST_FRAMES: usize = 10;
 
 /// Search window of the retry after a failed tracking attempt, in units of `window_px`.
 const WIDE_WINDOW_FACTOR: f32 = 4.0;
@@ -176,6 +215,11 @@ pub struct MonoTracker {
     initialised_once: bool,
     /// The map before tracking was lost: its points set the scale of the next map.
     lost_map: Option<LocalMap>,
+    /// The motion model's step length (map units per frame) when tracking was lost: the scale
+    /// of a new map that shares no points with the lost one.
+    lost_step: Option<f64>,
+    /// Consecutive lost frames the motion model has coasted through.
+    coasted: usize,
 }
 
 impl MonoTracker {
@@ -190,6 +234,8 @@ impl MonoTracker {
             motion: ConstantVelocity::default(),
             initialised_once: false,
             lost_map: None,
+            lost_step: None,
+            coasted: 0,
         })
     }
 
@@ -232,7 +278,7 @@ impl MonoTracker {
         start: Instant,
     ) -> FrameEstimate {
         let (query, positions, ids) = map.local_points(&self.camera, &predicted.inverse(), size);
-        let locate = |window_px: f32| {
+        let locate = |window_px: f32, prior: Isometry3<f64>| {
             let locator = PointLocator {
                 camera: &self.camera,
                 matching: &self.cfg.matching,
@@ -240,13 +286,26 @@ impl MonoTracker {
                 pnp: &self.cfg.pnp,
                 min_inliers: self.cfg.min_inliers,
             };
-            locator.locate(&query, &positions, &current, predicted.inverse())
+            locator.locate(&query, &positions, &current, prior)
         };
         // A motion change the prediction missed (the start of a turn) moves the points out of
         // the search window: one retry with a wider window before the frame is lost.
-        let mut located = locate(self.cfg.window_px);
+        let mut located = locate(self.cfg.window_px, predicted.inverse());
         if located.fit.is_err() {
-            located = locate(self.cfg.window_px * WIDE_WINDOW_FACTOR);
+            located = locate(self.cfg.window_px * WIDE_WINDOW_FACTOR, predicted.inverse());
+        }
+        // The wide window around the prediction takes wrong candidates and loses right ones
+        // to the ratio test; around the located pose a narrow window finds the map's points
+        // again, and that pose replaces the first when it has more support.
+        if let (Some(radius), Ok(first)) = (self.cfg.relocate_window_px, &located.fit) {
+            let again = locate(radius, first.pose);
+            let better = again
+                .fit
+                .as_ref()
+                .is_ok_and(|fit| fit.inlier_count > first.inlier_count);
+            if better {
+                located = again;
+            }
         }
         let Located {
             matches,
@@ -264,14 +323,13 @@ impl MonoTracker {
                         frames: 0,
                     };
                 }
-                self.motion.reset_velocity();
+                self.lost_step = self.motion.step_length();
                 let quality = FrameQuality::default();
                 let why = Some(why.to_string());
                 return Self::estimate(predicted, TrackStatus::Lost, quality, why, start);
             }
         };
-        let t_wc = fit.pose.inverse();
-        self.motion.update(t_wc);
+        let mut t_wc = fit.pose.inverse();
         let tracked: Vec<(Match, PointId, Point3<f64>)> = matches
             .iter()
             .zip(&world)
@@ -307,8 +365,12 @@ impl MonoTracker {
             &Point3::from(t_wc.translation.vector),
             tracked.iter().map(|(_, _, p)| p),
         );
-        let keyframe =
-            parallax >= self.cfg.keyframe_parallax_deg || self.cfg.keyframe.needs_keyframe(&view);
+        // A weakly supported pose may be wrong; as a keyframe it would build new points on
+        // that error, and later frames would agree with them: it only tracks.
+        let supported = fit.inlier_count >= self.cfg.min_keyframe_inliers;
+        let keyframe = supported
+            && (parallax >= self.cfg.keyframe_parallax_deg
+                || self.cfg.keyframe.needs_keyframe(&view));
         let quality = FrameQuality {
             inliers: fit.inlier_count,
             inlier_ratio: fit.inlier_count as f64 / matches.len().max(1) as f64,
@@ -324,12 +386,17 @@ impl MonoTracker {
             for (m, id, _) in &tracked {
                 map.observe(*id, k, m.train);
             }
-            map.triangulate_new(&self.camera, &self.cfg.matching, &rules);
+            map.triangulate_new(&self.camera, &self.cfg.triangulation_matching, &rules);
             map.maintain(&self.camera, &rules);
+            if let Some(ba) = &self.cfg.local_ba {
+                map.adjust(&self.camera, ba);
+            }
+            t_wc = map.last().map_or(t_wc, |kf| kf.t_wc);
             None
         } else {
             Some(first_residual)
         };
+        self.motion.update(t_wc);
         self.state = State::Tracking {
             map,
             first_residual,
@@ -337,12 +404,15 @@ impl MonoTracker {
         Self::estimate(t_wc, TrackStatus::Ok, quality, None, start).judged(fit.quality)
     }
 
-    /// The map initialised from the reference at `t_w1` becomes the tracked map, its scale
-    /// joined to the lost map's where they overlap.
+    /// The map initialised from the reference at `t_w1`, `elapsed` frames before the current
+    /// one, becomes the tracked map, its scale joined to the lost map's where they overlap;
+    /// where they do not (a segment break), the baseline is set to `elapsed` steps of the
+    /// motion model before the loss, so that the trajectory keeps its speed.
     fn start_map(
         &mut self,
         mut map: LocalMap,
         t_w1: &Isometry3<f64>,
+        elapsed: usize,
         quality: FrameQuality,
         start: Instant,
     ) -> FrameEstimate {
@@ -361,7 +431,20 @@ impl MonoTracker {
                     rescale(&mut map, t_w1, s);
                     format!("new map, scale {s:.3} joined to the lost one")
                 }
-                None => "new map, scale not joined to the lost one (segment break)".into(),
+                None => {
+                    let baseline = map.baseline();
+                    let step = self.lost_step.filter(|v| v.is_finite() && *v > 0.0);
+                    match step.zip(baseline.filter(|b| *b > 0.0)) {
+                        Some((step, baseline)) => {
+                            let s = step * elapsed as f64 / baseline;
+                            rescale(&mut map, t_w1, s);
+                            "new map, scale not joined to the lost one (segment break), \
+                             baseline from the motion model"
+                                .into()
+                        }
+                        None => "new map, scale not joined to the lost one (segment break)".into(),
+                    }
+                }
             };
             (TrackStatus::Reinitialised, Some(message))
         } else {
@@ -369,8 +452,9 @@ impl MonoTracker {
         };
         self.initialised_once = true;
         let pose = map.last().map_or(*t_w1, |kf| kf.t_wc);
-        self.motion.update(pose);
-        self.motion.reset_velocity();
+        // The initialising pair's motion, spread over the frames between them, predicts the
+        // next frame.
+        self.motion.restart(t_w1, &pose, elapsed);
         self.state = State::Tracking {
             map,
             first_residual: None,
@@ -392,8 +476,28 @@ impl MonoTracker {
 
 impl Tracker for MonoTracker {
     fn track(&mut self, frame: &Frame) -> FrameEstimate {
-        let start = Instant::now();
         let predicted = self.motion.predict().unwrap_or_else(Isometry3::identity);
+        let estimate = self.track_from(frame, predicted);
+        // A lost frame coasts on the motion model for a while (so that a new map is placed
+        // where the camera has gone), then the model holds still.
+        if estimate.status == TrackStatus::Lost && self.initialised_once {
+            if self.coasted < MAX_COAST_FRAMES {
+                self.motion.update(predicted);
+                self.coasted += 1;
+            } else {
+                self.motion.reset_velocity();
+            }
+        } else {
+            self.coasted = 0;
+        }
+        estimate
+    }
+}
+
+impl MonoTracker {
+    /// One frame from the motion model's prediction `predicted` (`T_wc`).
+    fn track_from(&mut self, frame: &Frame, predicted: Isometry3<f64>) -> FrameEstimate {
+        let start = Instant::now();
         let current = match self.orb.detect_and_describe(frame.image()) {
             Ok(f) => f,
             Err(e) => return Self::skipped(predicted, e.to_string(), start),
@@ -442,7 +546,7 @@ impl Tracker for MonoTracker {
                 };
                 match initialise(&rules, &reference, &t_wc, &current) {
                     Ok((map, quality, pose_quality)) => self
-                        .start_map(map, &t_wc, quality, start)
+                        .start_map(map, &t_wc, frames + 1, quality, start)
                         .judged(pose_quality),
                     Err(failure) => {
                         let keep = failure.keep_reference && frames < self.cfg.max_init_frames;

@@ -60,6 +60,9 @@ pub(crate) struct Reprojection<'a> {
     pub saved: Vec<Linearized>,
 }
 
+/// Residual rows per parallel task of the cost.
+const COST_CHUNK: usize = 1024;
+
 impl Reprojection<'_> {
     /// Loss weight of an evaluated row.
     fn weight(&self, row: &Linearized) -> f64 {
@@ -110,17 +113,21 @@ impl LmProblem for Reprojection<'_> {
 
     fn cost(&self) -> f64 {
         let s = self.scale;
-        self.rows
-            .par_iter()
-            .map(|row| {
-                let u = row.residual.norm() / s;
-                if u.is_finite() {
-                    s * s * self.loss.rho(u)
-                } else {
-                    0.0
-                }
-            })
-            .sum()
+        let rho = |row: &Linearized| {
+            let u = row.residual.norm() / s;
+            if u.is_finite() {
+                s * s * self.loss.rho(u)
+            } else {
+                0.0
+            }
+        };
+        // Fixed chunks summed in order, so that the cost is repeatable (see `schur`).
+        let partial: Vec<f64> = self
+            .rows
+            .par_chunks(COST_CHUNK)
+            .map(|chunk| chunk.iter().map(rho).sum())
+            .collect();
+        partial.iter().sum()
     }
 
     fn scale(&self) -> f64 {

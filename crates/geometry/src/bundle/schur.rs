@@ -85,6 +85,9 @@ fn damped<const N: usize>(
     out
 }
 
+/// Points per parallel task of the reduced camera system.
+const CHUNK: usize = 256;
+
 impl SchurSystem {
     /// `V_j + lambda D` inverted, zero when not positive definite (the point is held).
     fn point_inverses(&self, lambda: f64, damping: Damping) -> Vec<Matrix3<f64>> {
@@ -121,10 +124,16 @@ impl SchurSystem {
             (s, b)
         };
         let zero = || (DMatrix::zeros(n, n), DVector::zeros(n));
-        let (mut s, mut b) = (0..self.points.len())
+        // Fixed chunks summed in order: the same sums whatever the thread count or scheduling
+        // (rayon's fold/reduce would split adaptively, and a tracker would not be repeatable).
+        let n_points = self.points.len();
+        let partial: Vec<_> = (0..n_points.div_ceil(CHUNK))
             .into_par_iter()
-            .fold(zero, point_terms)
-            .reduce(zero, |(s1, b1), (s2, b2)| (s1 + s2, b1 + b2));
+            .map(|c| (c * CHUNK..n_points.min((c + 1) * CHUNK)).fold(zero(), point_terms))
+            .collect();
+        let (mut s, mut b) = partial
+            .into_iter()
+            .fold(zero(), |(s1, b1), (s2, b2)| (s1 + s2, b1 + b2));
         s.fill_lower_triangle_with_upper_triangle();
         for (i, (u, g)) in self.u.iter().zip(&self.gc).enumerate() {
             let mut block = s.fixed_view_mut::<6, 6>(6 * i, 6 * i);
