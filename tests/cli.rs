@@ -400,7 +400,6 @@ fn odometry_writes_trajectory_metrics_and_plot_and_eval_reads_them() {
 /// `--dist-model equidistant` reads `--dist` as Kannala-Brandt `k1,k2,k3,k4`: correspondences
 /// seen through a fisheye lens give the true pose; the flag needs `--dist`.
 #[test]
-#[ignore = "scene bug: points from (0.618 i, 0.382 i) fractions lie on one line (b = 1 - a), a degenerate configuration; rebuild the scene"]
 fn relpose_reads_fisheye_pixels_with_dist_model_equidistant() {
     use vofront::geometry::camera::{Camera, KannalaBrandt, Pinhole};
     let dir = temp_dir("relpose-fisheye");
@@ -411,8 +410,9 @@ fn relpose_reads_fisheye_pixels_with_dist_model_equidistant() {
     let truth = Isometry3::new(Vector3::new(0.3, 0.05, 0.1), Vector3::new(0.05, 0.1, 0.02));
     let mut csv = String::from("x1,y1,x2,y2\n");
     for i in 0..300 {
-        // Rays up to ~55 degrees off the axis, 2-8 m away.
-        let (a, b) = ((i as f64 * 0.618).fract(), (i as f64 * 0.382).fract());
+        // Rays up to ~55 degrees off the axis, 2-8 m away (two independent low-discrepancy
+        // fractions: with 0.618 and 0.382, `b = 1 - a` and every point lies on one image line).
+        let (a, b) = ((i as f64 * 0.618).fract(), (i as f64 * 0.7548).fract());
         let p = Point3::new(3.0 * a - 1.5, 2.2 * b - 1.1, 1.0)
             * (2.0 + 6.0 * ((i * 7 % 13) as f64 / 13.0));
         let (Some(u1), Some(u2)) = (cam.project(&p.coords), cam.project(&(truth * p).coords))
@@ -462,5 +462,36 @@ fn relpose_reads_fisheye_pixels_with_dist_model_equidistant() {
     // Without --dist the model has no coefficients: a command-line error.
     let lonely = vofront(&["relpose", "m.csv", "--dist-model", "fisheye"], &dir);
     assert_eq!(lonely.status.code(), Some(2));
+    // The scene this test first had: every point on one image line (the fractions 0.618 and
+    // 0.382 sum to one). A family of motions fits it; the pose relpose returned was 97 deg
+    // off with exit 0. Now it is `failed` (`degenerate`): exit 4, or 1 without an estimate.
+    let mut csv = String::from("x1,y1,x2,y2\n");
+    for i in 0..300 {
+        let (a, b) = ((i as f64 * 0.618).fract(), (i as f64 * 0.382).fract());
+        let p = Point3::new(3.0 * a - 1.5, 2.2 * b - 1.1, 1.0)
+            * (2.0 + 6.0 * ((i * 7 % 13) as f64 / 13.0));
+        if let (Some(u1), Some(u2)) = (cam.project(&p.coords), cam.project(&(truth * p).coords)) {
+            csv += &format!("{},{},{},{}\n", u1.x, u1.y, u2.x, u2.y);
+        }
+    }
+    std::fs::write(dir.join("line.csv"), csv).unwrap();
+    let mut args = vec![
+        "relpose",
+        "line.csv",
+        "--json",
+        "--dist-model",
+        "equidistant",
+    ];
+    args.extend_from_slice(&flags);
+    let line = vofront(&args, &dir);
+    match line.status.code() {
+        Some(4) => {
+            let json: Value = serde_json::from_slice(&line.stdout).unwrap();
+            assert_eq!(json["quality"]["verdict"], "failed", "{json}");
+            let reasons = json["quality"]["reasons"].to_string();
+            assert!(reasons.contains("degenerate"), "{reasons}");
+        }
+        code => assert_eq!(code, Some(1), "{}", String::from_utf8_lossy(&line.stdout)),
+    }
     std::fs::remove_dir_all(&dir).ok();
 }

@@ -207,3 +207,52 @@ fn pure_rotation_is_flagged_unreliable_with_an_accurate_rotation() {
     assert!(rel.quality.reasons.contains(&Reason::PureRotation));
     assert!(rel.rotation().angle_to(&pose.rotation).to_degrees() < 0.2);
 }
+
+/// Points on a plane through the first camera's centre (rays on one great circle, the points
+/// on one image line) fit a whole family of motions exactly: never `ok`, whatever the motion
+/// and the noise, and flagged `degenerate`.
+#[test]
+fn rays_in_one_plane_are_degenerate_never_ok() {
+    let camera = common::camera();
+    for seed in 0..10u64 {
+        let mut rng = StdRng::seed_from_u64(seed);
+        let truth = nalgebra::Isometry3::new(
+            nalgebra::Vector3::new(
+                rng.random_range(-0.5..0.5),
+                0.05,
+                rng.random_range(0.1..0.4),
+            ),
+            nalgebra::Vector3::new(0.02, rng.random_range(-0.1..0.1), 0.01),
+        );
+        // The plane through the origin with normal (0.3, 1, -0.2), rays within ~30 degrees.
+        let normal = nalgebra::Vector3::new(0.3, 1.0, -0.2);
+        let (mut u1, mut u2) = (Vec::new(), Vec::new());
+        for _ in 0..200 {
+            let x: f64 = rng.random_range(-0.55..0.55);
+            let y = -(normal.x * x - normal.z) / normal.y;
+            let p = nalgebra::Point3::new(x, y, 1.0) * rng.random_range(2.0..8.0);
+            let noise = |rng: &mut StdRng| {
+                Vector2::new(rng.random_range(-0.5..0.5), rng.random_range(-0.5..0.5))
+            };
+            let (Some(a), Some(b)) = (
+                camera.project(&p.coords),
+                camera.project(&(truth * p).coords),
+            ) else {
+                continue;
+            };
+            u1.push(a + noise(&mut rng));
+            u2.push(b + noise(&mut rng));
+        }
+        match estimate_relative_pose(&u1, &u2, &camera, &RelativePoseConfig::default()) {
+            Ok(rel) => {
+                assert_ne!(rel.quality.verdict, Verdict::Ok, "seed {seed}");
+                assert!(
+                    rel.quality.reasons.contains(&Reason::Degenerate),
+                    "seed {seed}: {:?}",
+                    rel.quality.reasons
+                );
+            }
+            Err(e) => assert!(!e.to_string().is_empty()),
+        }
+    }
+}

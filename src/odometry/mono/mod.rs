@@ -16,8 +16,9 @@
 //!    `angle(P - C_kf, P - C_cur)`, reaches `keyframe_parallax_deg`, when the tracked ratio
 //!    (inliers over the last keyframe's points) falls under the policy's `min_overlap`, or on
 //!    the policy's rotation and residual tests, and only from a pose with at least
-//!    `min_keyframe_inliers` inliers (a weakly supported pose may be wrong, and points built
-//!    on it would make later frames agree with the error). A keyframe adds observations,
+//!    `min_keyframe_inliers` inliers or a clean consensus (`keyframe_clean_ratio`): a weakly
+//!    supported pose may be wrong, and points built on it would make later frames agree
+//!    with the error. A keyframe adds observations,
 //!    triangulates new points against its neighbours, refines the structure, culls points and
 //!    runs the local bundle adjustment (`adjust`).
 //! 4. When PnP fails the frame is lost; the motion model coasts through lost frames (up to
@@ -66,8 +67,12 @@ pub struct MonoConfig {
     pub min_init_parallax_deg: f64,
     /// Fewest PnP inliers for a tracked frame.
     pub min_inliers: usize,
-    /// Fewest PnP inliers for a frame to become a keyframe (and extend the map).
+    /// Fewest PnP inliers for a frame to become a keyframe (and extend the map), unless its
+    /// consensus is clean (`keyframe_clean_ratio`).
     pub min_keyframe_inliers: usize,
+    /// Inlier ratio (inliers over matches) from which a pose with fewer than
+    /// `min_keyframe_inliers` inliers may still become a keyframe.
+    pub keyframe_clean_ratio: f64,
     /// Rotation, tracked-ratio (`min_overlap`) and residual tests of the keyframe decision;
     /// its metric translation test is off by default (map units mean nothing in monocular).
     pub keyframe: KeyframePolicy,
@@ -124,6 +129,7 @@ impl Default for MonoConfig {
             min_init_parallax_deg: 1.0,
             min_inliers: 25,
             min_keyframe_inliers: 50,
+            keyframe_clean_ratio: 0.8,
             keyframe: KeyframePolicy {
                 max_relative_translation: f64::INFINITY,
                 min_overlap: 0.5,
@@ -367,13 +373,15 @@ impl MonoTracker {
         );
         // A weakly supported pose may be wrong; as a keyframe it would build new points on
         // that error, and later frames would agree with them: it only tracks.
-        let supported = fit.inlier_count >= self.cfg.min_keyframe_inliers;
+        let ratio = fit.inlier_count as f64 / matches.len().max(1) as f64;
+        let supported = fit.inlier_count >= self.cfg.min_keyframe_inliers
+            || ratio >= self.cfg.keyframe_clean_ratio;
         let keyframe = supported
             && (parallax >= self.cfg.keyframe_parallax_deg
                 || self.cfg.keyframe.needs_keyframe(&view));
         let quality = FrameQuality {
             inliers: fit.inlier_count,
-            inlier_ratio: fit.inlier_count as f64 / matches.len().max(1) as f64,
+            inlier_ratio: ratio,
             rmse: fit.rmse_px,
             iterations: fit.iterations,
             covariance_trace: fit.covariance.map(|c| c.trace()),

@@ -21,7 +21,9 @@
 //! 5. a median parallax under `min_parallax_deg` flags `low_parallax` (translation direction
 //!    poorly determined); when a rotation alone explains at least 90% of the model's inliers
 //!    the motion is a pure rotation (`rotation`, the rotation-only case): least-squares
-//!    rotation of the rays, zero translation;
+//!    rotation of the rays, zero translation; inlier rays of either view that lie in one plane
+//!    through its centre (points on an image line: a family of motions fits them) flag
+//!    `degenerate`;
 //! 6. the quality record ([`RelativePose::quality`]): fewer than five final inliers is
 //!    [`GeometryError::NoModel`]; otherwise support, the a-contrario chance test and the
 //!    covariance `sigma^2 (J^T J)^-1` of `(R, t)` from the Sampson Jacobian on the refit's
@@ -155,9 +157,12 @@ fn general_pose(
         iterations: sel.iterations.total(),
     };
     let low_parallax = final_rec.median_parallax_deg < tv.cfg.min_parallax_deg;
+    let coplanar = quality::rays_are_coplanar(used.iter().map(|&k| &b1[k]))
+        || quality::rays_are_coplanar(used.iter().map(|&k| &b2[k]));
     let flags: Vec<Reason> = [
         (low_parallax, Reason::LowParallax),
         (chosen.ambiguous, Reason::PlanarAmbiguous),
+        (coplanar, Reason::Degenerate),
     ]
     .into_iter()
     .filter_map(|(on, r)| on.then_some(r))

@@ -7,7 +7,7 @@
 //! about the motion but keep the image distribution of the features). The consensus is then
 //! scored by [`log10_nfa`] with the number of hypotheses RANSAC tried.
 
-use nalgebra::{Matrix5, SMatrix};
+use nalgebra::{Matrix3, Matrix5, SMatrix, Vector3};
 use vofront_robust::quality::{block_rows, laplace_rate, log10_nfa, repairing_shifts, rms_of};
 use vofront_robust::{Quality, QualityConfig, Reason, Support, Uncertainty};
 
@@ -37,6 +37,28 @@ pub(super) fn chance_rate(
         total += n;
     }
     laplace_rate(hits, total)
+}
+
+/// Largest `lambda_3 / lambda_2` of the ray scatter at which the rays count as coplanar.
+///
+/// `lambda_3 / lambda_2` is the mean squared out-of-plane angle over the in-plane spread: 1e-3
+/// is rays within about 0.03 of their spread from one plane (3 px over a 60 degree field of
+/// view at a 300 px focal length).
+const COPLANAR_RAYS: f64 = 1e-3;
+
+/// Whether the rays `f_i` (unit or not) lie nearly in one plane through the camera centre:
+/// the eigenvalues `lambda_1 >= lambda_2 >= lambda_3` of the scatter `sum f_i f_i^T / |f_i|^2`
+/// have `lambda_3 <= COPLANAR_RAYS lambda_2`. Such rays (points on a line in the image, on a
+/// plane through the centre) leave the epipolar geometry undetermined: a family of motions
+/// fits them exactly.
+pub(super) fn rays_are_coplanar<'a>(rays: impl Iterator<Item = &'a Vector3<f64>>) -> bool {
+    let scatter: Matrix3<f64> = rays
+        .filter(|f| f.norm_squared() > 0.0)
+        .map(|f| f * f.transpose() / f.norm_squared())
+        .sum();
+    let mut eigen: Vec<f64> = scatter.symmetric_eigenvalues().iter().copied().collect();
+    eigen.sort_by(|a, b| b.total_cmp(a));
+    eigen[2] <= COPLANAR_RAYS * eigen[1]
 }
 
 /// What [`judge`] needs beyond the estimator's flags.
