@@ -173,25 +173,35 @@ impl LocalMap {
         &mut self,
         camera: &Camera,
         t_cw: &Isometry3<f64>,
+        size: (u32, u32),
+    ) -> (Features, Vec<Option<Point3<f64>>>, Vec<PointId>) {
+        let (query, positions, ids) = self.project_points(camera, t_cw, size);
+        for (id, x) in ids.iter().zip(query.xs()) {
+            if let (true, Some(p)) = (x.is_finite(), self.points.get_mut(id)) {
+                p.visible += 1;
+            }
+        }
+        (query, positions, ids)
+    }
+
+    /// [`Self::local_points`] without counting the points as visible (a trial location).
+    pub fn project_points(
+        &self,
+        camera: &Camera,
+        t_cw: &Isometry3<f64>,
         (width, height): (u32, u32),
     ) -> (Features, Vec<Option<Point3<f64>>>, Vec<PointId>) {
         let mut ids: Vec<PointId> = self.points.keys().copied().collect();
         ids.sort_unstable();
         let mut query = Features::default();
         let mut positions = Vec::with_capacity(ids.len());
-        ids.retain(|id| self.points.contains_key(id));
         for id in &ids {
-            let Some(p) = self.points.get_mut(id) else {
-                continue;
-            };
+            let p = &self.points[id];
             let x = t_cw * p.position;
             let uv = (x.z > 0.0)
                 .then(|| camera.project(&x.coords))
                 .flatten()
                 .filter(|u| u.x >= 0.0 && u.y >= 0.0 && u.x < width as f64 && u.y < height as f64);
-            if uv.is_some() {
-                p.visible += 1;
-            }
             let (u, v) = uv.map_or((f32::NAN, f32::NAN), |u| (u.x as f32, u.y as f32));
             // Windowed matching reads only positions, levels and descriptors of the query.
             query.push(Feature {

@@ -22,8 +22,10 @@
 //!    triangulates new points against its neighbours, refines the structure, culls points and
 //!    runs the local bundle adjustment (`adjust`).
 //! 4. When PnP fails the frame is lost; the motion model coasts through lost frames (up to
-//!    `MAX_COAST_FRAMES`) and initialisation starts again (from that frame if it has enough
-//!    features), placed at the motion model's pose, with the new map's scale joined to the
+//!    `MAX_COAST_FRAMES`). Each later frame is first located against the lost map from that
+//!    prediction (wide window, `min_keyframe_inliers` inliers): after a short fault the map is
+//!    tracked again with its scale. Meanwhile initialisation starts again (from that frame if
+//!    it has enough features), placed at the motion model's pose, with the new map's scale joined to the
 //!    lost one where they overlap; where they do not (a segment break, said in the
 //!    reinitialised frame's message), the new baseline is the motion model's median step
 //!    length times the frames it spans, so that the trajectory keeps its speed.
@@ -470,6 +472,29 @@ impl MonoTracker {
         Self::estimate(pose, status, quality, message, start)
     }
 
+    /// The lost map, taken back, when `current` locates against it from the coasting
+    /// prediction (the wide search window) with at least `min_keyframe_inliers` inliers: a
+    /// short fault (a dark, blurred or corrupt frame) then costs no new map and no scale.
+    fn relocalised(
+        &mut self,
+        current: &Features,
+        size: (u32, u32),
+        predicted: Isometry3<f64>,
+    ) -> Option<LocalMap> {
+        let map = self.lost_map.as_ref()?;
+        let (query, positions, _) = map.project_points(&self.camera, &predicted.inverse(), size);
+        let locator = PointLocator {
+            camera: &self.camera,
+            matching: &self.cfg.matching,
+            window_px: self.cfg.window_px * WIDE_WINDOW_FACTOR,
+            pnp: &self.cfg.pnp,
+            min_inliers: self.cfg.min_keyframe_inliers,
+        };
+        let located = locator.locate(&query, &positions, current, predicted.inverse());
+        located.fit.ok()?;
+        self.lost_map.take()
+    }
+
     /// A frame reported lost at the prediction, with the reason.
     fn skipped(predicted: Isometry3<f64>, why: String, start: Instant) -> FrameEstimate {
         Self::estimate(
@@ -519,6 +544,16 @@ impl MonoTracker {
                 self.cfg.min_init_points
             );
             return Self::skipped(predicted, why, start);
+        }
+        if !tracking {
+            if let Some(map) = self.relocalised(&current, frame.image().dimensions(), predicted) {
+                let size = frame.image().dimensions();
+                let estimate = self.track_map(map, None, current, size, predicted, start);
+                return FrameEstimate {
+                    message: Some("relocalised against the lost map (its scale kept)".into()),
+                    ..estimate
+                };
+            }
         }
         match std::mem::replace(&mut self.state, State::Empty) {
             State::Empty => {
