@@ -26,6 +26,7 @@ use vofront::eval::{ate, rpe, Alignment, EvalConfig};
 use vofront::features::Orb;
 use vofront::odometry::mono::{MonoConfig, MonoTracker};
 use vofront::odometry::{TrackStatus, Tracker};
+use vofront::robust::median_in_place;
 use vofront::trajectory::Trajectory;
 
 fn main() {
@@ -76,15 +77,7 @@ fn sweep(dir: &std::path::Path, n: u64) -> Result<(), String> {
     let scores: Vec<Score> = (0..n)
         .map(|seed| bench(dir, Some(seed)))
         .collect::<Result<_, _>>()?;
-    let median = |mut v: Vec<f64>| {
-        v.sort_by(f64::total_cmp);
-        let m = v.len() / 2;
-        if v.len() % 2 == 0 {
-            (v[m - 1] + v[m]) / 2.0
-        } else {
-            v[m]
-        }
-    };
+    let median = |mut v: Vec<f64>| median_in_place(&mut v).unwrap_or(f64::NAN);
     let worst = |v: &[f64]| v.iter().copied().fold(f64::NEG_INFINITY, f64::max);
     let ate: Vec<f64> = scores.iter().map(|s| s.ate_m).collect();
     let rot: Vec<f64> = scores.iter().map(|s| s.rpe_rot_deg).collect();

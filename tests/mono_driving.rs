@@ -10,6 +10,7 @@ use vofront::fixtures::driving::{DrivingSequence, FRAME_RATE};
 use vofront::fixtures::image2d::to_gray8;
 use vofront::odometry::mono::{MonoConfig, MonoTracker};
 use vofront::odometry::{TrackStatus, Tracker};
+use vofront::robust::median_in_place;
 use vofront::trajectory::Trajectory;
 
 /// Frames of the sequence: 24 m straight, then the turn (about 4 degrees per frame).
@@ -139,11 +140,7 @@ fn a_segment_break_keeps_the_speed_of_the_motion_model() {
             })
             .collect()
     };
-    let median = |mut v: Vec<f64>| {
-        assert!(!v.is_empty());
-        v.sort_by(f64::total_cmp);
-        v[v.len() / 2]
-    };
+    let median = |mut v: Vec<f64>| median_in_place(&mut v).expect("tracked steps");
     let old = median(steps(MAX_INIT_FRAMES + 2..10));
     let new = median(steps(restart + 1..FRAMES));
     let ratio = new / old;

@@ -9,8 +9,6 @@
 //! triangulated them. Observations beyond the adjustment's chi-square gate are unlinked from
 //! their points; points left with no observation are removed.
 
-use std::collections::HashMap;
-
 use vofront_geometry::bundle::{bundle_adjust, BundleConfig, BundleProblem, Observation};
 use vofront_geometry::Camera;
 
@@ -82,13 +80,9 @@ impl LocalMap {
                 p.position = *position;
             }
         }
-        let mut unlinked: HashMap<PointId, usize> = HashMap::new();
         for &o in &report.culled {
             let (id, kid, f) = links[o];
             self.unobserve(id, kid, f);
-            *unlinked.entry(id).or_default() += 1;
-        }
-        for (id, _) in unlinked {
             if self
                 .points
                 .get(&id)

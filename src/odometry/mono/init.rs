@@ -133,6 +133,15 @@ pub(super) fn scale_to(
     crate::robust::median_in_place(&mut ratios).filter(|s| *s > 0.0)
 }
 
+/// Scale that makes the baseline of `map` (its two newest keyframes, `elapsed` frames
+/// apart) `elapsed` steps of the motion model's typical `step` (map units per frame); `None`
+/// without a positive step or baseline.
+pub(super) fn scale_from_motion(map: &LocalMap, step: Option<f64>, elapsed: usize) -> Option<f64> {
+    let step = step.filter(|v| v.is_finite() && *v > 0.0)?;
+    let baseline = map.baseline().filter(|b| *b > 0.0)?;
+    Some(step * elapsed as f64 / baseline)
+}
+
 /// Scales `map` by `s` about the reference camera `t_w1`: `P <- T_w1 (s T_w1^-1 P)` for the
 /// points, and the translation of `T_w1^-1 T_wc` times `s` for the keyframes.
 pub(super) fn rescale(map: &mut LocalMap, t_w1: &Isometry3<f64>, s: f64) {

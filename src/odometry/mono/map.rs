@@ -240,7 +240,6 @@ impl LocalMap {
             };
             let (a, b) = (&self.keyframes[other], &self.keyframes[newest]);
             let (free_a, free_b) = (free(a), free(b));
-            let t_ba = b.t_wc.inverse() * a.t_wc;
             let da: Vec<Descriptor> = free_a
                 .iter()
                 .map(|&f| a.features.descriptors()[f as usize])
@@ -249,9 +248,9 @@ impl LocalMap {
                 .iter()
                 .map(|&f| b.features.descriptors()[f as usize])
                 .collect();
-            let matches = match_descriptors(&da, &db, matching);
+            let t_ba = b.t_wc.inverse() * a.t_wc;
             let mut new_points = Vec::new();
-            for m in matches {
+            for m in match_descriptors(&da, &db, matching) {
                 let (fa, fb) = (free_a[m.query as usize], free_b[m.train as usize]);
                 let (ua, ub) = (
                     feature_pixel(&a.features, fa),

@@ -18,141 +18,36 @@
 //!    the policy's rotation and residual tests, and only from a pose with at least
 //!    `min_keyframe_inliers` inliers or a clean consensus (`keyframe_clean_ratio`): a weakly
 //!    supported pose may be wrong, and points built on it would make later frames agree
-//!    with the error. A keyframe adds observations,
-//!    triangulates new points against its neighbours, refines the structure, culls points and
-//!    runs the local bundle adjustment (`adjust`).
+//!    with the error. A keyframe adds observations, triangulates new points against its
+//!    neighbours, refines the structure, culls points and runs the local bundle adjustment
+//!    (`adjust`).
 //! 4. When PnP fails the frame is lost; the motion model coasts through lost frames (up to
 //!    `MAX_COAST_FRAMES`). Each later frame is first located against the lost map from that
 //!    prediction (wide window, `min_keyframe_inliers` inliers): after a short fault the map is
 //!    tracked again with its scale. Meanwhile initialisation starts again (from that frame if
-//!    it has enough features), placed at the motion model's pose, with the new map's scale joined to the
-//!    lost one where they overlap; where they do not (a segment break, said in the
+//!    it has enough features), placed at the motion model's pose, with the new map's scale
+//!    joined to the lost one where they overlap; where they do not (a segment break, said in the
 //!    reinitialised frame's message), the new baseline is the motion model's median step
 //!    length times the frames it spans, so that the trajectory keeps its speed.
 
 mod adjust;
+mod config;
 mod init;
 mod map;
 
 use std::time::Instant;
 
 use nalgebra::{Isometry3, Point3};
-use vofront_features::{Features, Match, MatchConfig, Orb, OrbConfig};
-use vofront_geometry::bundle::BundleConfig;
-use vofront_geometry::pnp::PnpConfig;
-use vofront_geometry::{Camera, RansacConfig, RelativePoseConfig};
+use vofront_features::{Features, Match, Orb};
+use vofront_geometry::Camera;
 
-use super::keyframe::{KeyframePolicy, KeyframeView};
+use super::keyframe::KeyframeView;
 use super::motion::ConstantVelocity;
 use super::{ms_since, FrameEstimate, FrameQuality, Located, PointLocator, TrackStatus, Tracker};
 use crate::dataset::Frame;
-use init::{initialise, rescale, scale_to, InitRules};
+pub use config::MonoConfig;
+use init::{initialise, rescale, scale_from_motion, scale_to, InitRules};
 use map::{LocalMap, MapRules, PointId};
-
-/// Settings of [`MonoTracker`].
-#[derive(Debug, Clone)]
-pub struct MonoConfig {
-    /// ORB settings.
-    pub orb: OrbConfig,
-    /// Matching filters.
-    pub matching: MatchConfig,
-    /// Search radius around predicted positions, pixels.
-    pub window_px: f32,
-    /// Two-view estimation used for initialisation.
-    pub relative: RelativePoseConfig,
-    /// PnP RANSAC and refinement.
-    pub pnp: PnpConfig,
-    /// Fewest triangulated points to accept an initialisation (and fewest features for a
-    /// frame to serve one).
-    pub min_init_points: usize,
-    /// Smallest median parallax to accept an initialisation, degrees.
-    pub min_init_parallax_deg: f64,
-    /// Fewest PnP inliers for a tracked frame.
-    pub min_inliers: usize,
-    /// Fewest PnP inliers for a frame to become a keyframe (and extend the map), unless its
-    /// consensus is clean (`keyframe_clean_ratio`).
-    pub min_keyframe_inliers: usize,
-    /// Inlier ratio (inliers over matches) from which a pose with fewer than
-    /// `min_keyframe_inliers` inliers may still become a keyframe.
-    pub keyframe_clean_ratio: f64,
-    /// Rotation, tracked-ratio (`min_overlap`) and residual tests of the keyframe decision;
-    /// its metric translation test is off by default (map units mean nothing in monocular).
-    pub keyframe: KeyframePolicy,
-    /// Largest reprojection error of a point in any of its observations, pixels.
-    pub max_reprojection_px: f64,
-    /// Smallest parallax of a new point, degrees.
-    pub min_point_parallax_deg: f64,
-    /// Median parallax of the tracked points against the last keyframe that triggers a new
-    /// keyframe, degrees.
-    pub keyframe_parallax_deg: f64,
-    /// Keyframes in the local map.
-    pub window: usize,
-    /// Earlier keyframes a new keyframe triangulates new points against.
-    pub triangulation_neighbours: usize,
-    /// Frames an initialisation waits for parallax before taking a newer reference.
-    pub max_init_frames: usize,
-    /// Fewest old-map points matched to the new map to join their scales after a loss.
-    pub min_scale_matches: usize,
-    /// Search radius of the second matching pass around the first located pose, pixels
-    /// (`None`: one pass).
-    pub relocate_window_px: Option<f32>,
-    /// Matching of free features between keyframes for new points (brute force, then the
-    /// reprojection and parallax tests of triangulation).
-    pub triangulation_matching: MatchConfig,
-    /// Local bundle adjustment of the window after each keyframe (module `adjust`; its
-    /// `fixed_poses` is always the two oldest keyframes); `None` turns it off.
-    pub local_ba: Option<BundleConfig>,
-}
-
-impl Default for MonoConfig {
-    fn default() -> Self {
-        Self {
-            orb: OrbConfig {
-                n_features: 1500,
-                ..OrbConfig::default()
-            },
-            matching: MatchConfig {
-                ratio: Some(0.8),
-                ..MatchConfig::default()
-            },
-            window_px: 24.0,
-            relative: RelativePoseConfig::default(),
-            // ORB positions at pyramid level k are uncertain by about 1.2^k pixels: on real
-            // footage a third of the right matches lie 2-4 px from the located pose, and a
-            // 2 px gate drops them.
-            pnp: PnpConfig {
-                ransac: RansacConfig {
-                    threshold: 3.0,
-                    ..PnpConfig::default().ransac
-                },
-                ..PnpConfig::default()
-            },
-            min_init_points: 80,
-            min_init_parallax_deg: 1.0,
-            min_inliers: 25,
-            min_keyframe_inliers: 50,
-            keyframe_clean_ratio: 0.8,
-            keyframe: KeyframePolicy {
-                max_relative_translation: f64::INFINITY,
-                min_overlap: 0.5,
-                ..KeyframePolicy::default()
-            },
-            max_reprojection_px: 2.0,
-            min_point_parallax_deg: 0.5,
-            keyframe_parallax_deg: 1.0,
-            window: 5,
-            triangulation_neighbours: 2,
-            max_init_frames: 30,
-            min_scale_matches: 12,
-            relocate_window_px: Some(4.0),
-            triangulation_matching: MatchConfig {
-                ratio: Some(0.8),
-                ..MatchConfig::default()
-            },
-            local_ba: Some(BundleConfig::default()),
-        }
-    }
-}
 
 /// Lost frames through which the motion model keeps its velocity.
 const MAX_COAST_FRAMES: usize = 10;
@@ -396,7 +291,7 @@ impl MonoTracker {
             for (m, id, _) in &tracked {
                 map.observe(*id, k, m.train);
             }
-            map.triangulate_new(&self.camera, &self.cfg.triangulation_matching, &rules);
+            map.triangulate_new(&self.camera, &self.cfg.matching, &rules);
             map.maintain(&self.camera, &rules);
             if let Some(ba) = &self.cfg.local_ba {
                 map.adjust(&self.camera, ba);
@@ -441,20 +336,15 @@ impl MonoTracker {
                     rescale(&mut map, t_w1, s);
                     format!("new map, scale {s:.3} joined to the lost one")
                 }
-                None => {
-                    let baseline = map.baseline();
-                    let step = self.lost_step.filter(|v| v.is_finite() && *v > 0.0);
-                    match step.zip(baseline.filter(|b| *b > 0.0)) {
-                        Some((step, baseline)) => {
-                            let s = step * elapsed as f64 / baseline;
-                            rescale(&mut map, t_w1, s);
-                            "new map, scale not joined to the lost one (segment break), \
-                             baseline from the motion model"
-                                .into()
-                        }
-                        None => "new map, scale not joined to the lost one (segment break)".into(),
+                None => match scale_from_motion(&map, self.lost_step, elapsed) {
+                    Some(s) => {
+                        rescale(&mut map, t_w1, s);
+                        "new map, scale not joined to the lost one (segment break), baseline \
+                         from the motion model"
+                            .into()
                     }
-                }
+                    None => "new map, scale not joined to the lost one (segment break)".into(),
+                },
             };
             (TrackStatus::Reinitialised, Some(message))
         } else {

@@ -56,7 +56,7 @@ pub(super) fn rays_are_coplanar<'a>(rays: impl Iterator<Item = &'a Vector3<f64>>
         .filter(|f| f.norm_squared() > 0.0)
         .map(|f| f * f.transpose() / f.norm_squared())
         .sum();
-    let mut eigen: Vec<f64> = scatter.symmetric_eigenvalues().iter().copied().collect();
+    let mut eigen: [f64; 3] = scatter.symmetric_eigenvalues().into();
     eigen.sort_by(|a, b| b.total_cmp(a));
     eigen[2] <= COPLANAR_RAYS * eigen[1]
 }
