@@ -14,14 +14,16 @@ use vofront::direct::{
     photometric_residual_map, track_klt, KltConfig, Plane, RgbdFrame, Se3Config, TranslationConfig,
     WarpConfig,
 };
+use vofront::eval::{ate, rpe, Alignment, EvalConfig};
 use vofront::features::{
     match_descriptors, match_windowed, Descriptor, Features, MatchConfig, Orb, OrbConfig,
 };
 use vofront::geometry::essential::{decompose_essential, essential_5pt, essential_8pt};
 use vofront::geometry::homography::{decompose_homography, homography_dlt};
 use vofront::geometry::{
-    estimate_relative_pose, solve_pnp_ransac, triangulate_dlt, triangulate_midpoint, Camera,
-    Pinhole, PnpConfig, RelativePoseConfig,
+    bundle_adjust, estimate_relative_pose, solve_pnp_ransac, triangulate_dlt, triangulate_midpoint,
+    BundleConfig, BundleProblem, Camera, Distortion, KannalaBrandt, Lens, Observation, Pinhole,
+    PnpConfig, RelativePoseConfig, UndistortMap,
 };
 use vofront::input::{load_correspondences, load_depth, load_gray};
 use vofront::odometry::direct::{DirectTracker, DirectTrackerConfig};
@@ -250,6 +252,65 @@ proptest! {
         no_panic("solve_pnp_ransac, equal lengths", || {
             solve_pnp_ransac(&world[..n], &px[..n], &camera(), prior, &PnpConfig::default())
         })?;
+    }
+
+    #[test]
+    fn bundle_adjustment_never_panics(
+        poses in prop::collection::vec((wild_f64(), wild_f64(), wild_f64()), 0..5),
+        points in prop::collection::vec((wild_f64(), wild_f64(), wild_f64()), 0..12),
+        observations in prop::collection::vec((0usize..6, 0usize..14, wild_f64(), wild_f64()), 0..40),
+        cam in wild_camera(),
+        fixed in 0usize..4,
+        sigma in wild_f64(),
+    ) {
+        let mut problem = BundleProblem {
+            camera: cam,
+            poses: poses.iter().map(|&(x, y, z)| Isometry3::new(Vector3::new(x, y, z), Vector3::new(0.01 * y, 0.0, 0.01 * x))).collect(),
+            points: points.iter().map(|&(x, y, z)| Point3::new(x, y, z)).collect(),
+            observations: observations.iter().map(|&(pose, point, u, v)| Observation { pose, point, pixel: Vector2::new(u, v) }).collect(),
+        };
+        let cfg = BundleConfig { fixed_poses: fixed, sigma_px: sigma, ..BundleConfig::default() };
+        no_panic("bundle_adjust", || bundle_adjust(&mut problem, &cfg))?;
+    }
+
+    #[test]
+    fn evaluation_never_panics(
+        a in prop::collection::vec((wild_f64(), wild_f64(), wild_f64(), wild_f64()), 0..12),
+        b in prop::collection::vec((wild_f64(), wild_f64(), wild_f64(), wild_f64()), 0..12),
+        alignment in 0u8..3,
+        max_dt in wild_f64(),
+    ) {
+        let trajectory = |v: &[(f64, f64, f64, f64)]| Trajectory::new(v.iter().map(|&(t, x, y, z)| {
+            (t, Isometry3::new(Vector3::new(x, y, z), Vector3::new(0.0, 0.001 * x, 0.0)))
+        }).collect());
+        let (gt, est) = (trajectory(&a), trajectory(&b));
+        let cfg = EvalConfig {
+            alignment: [Alignment::None, Alignment::Se3, Alignment::Sim3][alignment as usize],
+            max_dt,
+        };
+        no_panic("ate", || ate(&gt, &est, &cfg))?;
+        no_panic("rpe", || rpe(&gt, &est, &cfg))?;
+    }
+
+    #[test]
+    fn camera_models_never_panic(
+        k in (wild_f64(), wild_f64(), wild_f64(), wild_f64()),
+        d in (wild_f64(), wild_f64(), wild_f64(), wild_f64(), wild_f64()),
+        cam in wild_camera(),
+        p in (wild_f64(), wild_f64(), wild_f64()),
+        size in (0usize..24, 0usize..24),
+    ) {
+        let lenses: Vec<Lens> = [
+            KannalaBrandt::new([k.0, k.1, k.2, k.3]).ok().map(Lens::from),
+            Some(Lens::from(Distortion::from_array([d.0, d.1, d.2, d.3, d.4]))),
+        ].into_iter().flatten().collect();
+        for lens in lenses {
+            let c = Camera::new(cam.pinhole, lens);
+            let point = Vector3::new(p.0, p.1, p.2);
+            no_panic("Camera::project", || c.project(&point).map(|u| (c.bearing(&u), c.pixel_to_normalized(&u))))?;
+            no_panic("Camera::project_jacobian", || c.project_jacobian(&point))?;
+            no_panic("UndistortMap::new", || UndistortMap::new(&c, &cam.pinhole, size.0, size.1))?;
+        }
     }
 
     #[test]

@@ -3,7 +3,7 @@
 use std::path::PathBuf;
 use std::sync::OnceLock;
 
-use vofront::dataset::Dataset;
+use vofront::dataset::{Dataset, DatasetError};
 use vofront::eval::{ate, Alignment, EvalConfig};
 use vofront::fixtures::scene::{default_camera, room_trajectory, Scene};
 use vofront::fixtures::tum::write_tum_sequence;
@@ -132,6 +132,31 @@ fn frames_without_depth_are_lost_not_fatal() {
     let e = tracker.track(&frame);
     assert_eq!(e.status, TrackStatus::Lost);
     assert!(e.message.unwrap().contains("depth"));
+    std::fs::remove_dir_all(dir).ok();
+}
+
+#[test]
+fn an_unreadable_frame_is_a_typed_error_and_the_run_goes_on() {
+    let (dir, _) = sequence("corrupt", 160, 120);
+    let mut images: Vec<PathBuf> = std::fs::read_dir(dir.join("rgb"))
+        .unwrap()
+        .map(|e| e.unwrap().path())
+        .collect();
+    images.sort();
+    std::fs::write(&images[3], b"not a png").unwrap();
+    let dataset = Dataset::open(&dir).unwrap();
+    let out = run(&dataset, &mut direct_tracker(160), Some(8), |_, _| {});
+    assert_eq!(out.records.len(), 8);
+    assert_eq!(out.summary.unreadable, 1);
+    let why = out.records[3].estimate.as_ref().unwrap_err();
+    assert!(
+        matches!(**why, DatasetError::Image { index: 3, ref path, .. } if *path == images[3]),
+        "{why}"
+    );
+    assert!(out.records[4..].iter().all(|r| r
+        .estimate
+        .as_ref()
+        .is_ok_and(|e| e.status != TrackStatus::Lost)));
     std::fs::remove_dir_all(dir).ok();
 }
 

@@ -233,11 +233,11 @@ pub fn run_odometry<'py>(
     for r in &out.records {
         let d = match &r.estimate {
             Ok(e) => estimate_dict(py, r.timestamp, e)?,
-            Err(message) => {
+            Err(why) => {
                 let d = PyDict::new(py);
                 d.set_item("timestamp", r.timestamp)?;
                 d.set_item("status", "unreadable")?;
-                d.set_item("message", message)?;
+                d.set_item("message", why.to_string())?;
                 d
             }
         };

@@ -217,14 +217,14 @@ impl Tracker for FeatureRgbdTracker {
         let view = KeyframeView {
             t_cur_kf: fit.pose,
             median_depth: kf.median_depth,
-            overlap: fit.inlier_count as f64 / kf.with_depth.max(1) as f64,
+            overlap: fit.inlier_count() as f64 / kf.with_depth.max(1) as f64,
             residual: fit.rmse_px,
             first_residual,
         };
         self.slot.motion.update(t_wc);
         let quality = FrameQuality {
-            inliers: fit.inlier_count,
-            inlier_ratio: fit.inlier_count as f64 / matches.len().max(1) as f64,
+            inliers: fit.inlier_count(),
+            inlier_ratio: fit.inlier_count() as f64 / matches.len().max(1) as f64,
             rmse: fit.rmse_px,
             iterations: fit.iterations,
             covariance_trace: fit.covariance.map(|c| c.trace()),

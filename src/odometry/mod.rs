@@ -302,12 +302,12 @@ impl PointLocator<'_> {
                         what: "PnP",
                         reasons: reasons_text(&fit.quality),
                     })
-                } else if fit.inlier_count >= self.min_inliers {
+                } else if fit.inlier_count() >= self.min_inliers {
                     Ok(fit)
                 } else {
                     Err(VoError::TooFew {
                         what: "PnP inliers",
-                        got: fit.inlier_count,
+                        got: fit.inlier_count(),
                         need: self.min_inliers,
                     })
                 }

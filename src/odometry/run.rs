@@ -10,24 +10,26 @@ use std::convert::Infallible;
 use std::io::{self, Write};
 use std::path::Path;
 use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::Arc;
 
 use serde::Serialize;
 use thiserror::Error;
 use vofront_robust::Verdict;
 
 use super::{reasons_text, FrameEstimate, TrackStatus, Tracker};
-use crate::dataset::Dataset;
+use crate::dataset::{Dataset, DatasetError};
 use crate::trajectory::Trajectory;
 
 /// What happened to one frame of the dataset.
-#[derive(Debug, Clone, PartialEq)]
+#[derive(Debug, Clone)]
 pub struct FrameRecord {
     /// Index in the dataset.
     pub index: usize,
     /// Timestamp, seconds.
     pub timestamp: f64,
-    /// The tracker's estimate, or why the frame could not be read.
-    pub estimate: Result<FrameEstimate, String>,
+    /// The tracker's estimate, or why the frame could not be read (shared, so that a record
+    /// stays cheap to clone).
+    pub estimate: Result<FrameEstimate, Arc<DatasetError>>,
 }
 
 impl FrameRecord {
@@ -231,7 +233,7 @@ impl MetricsRow {
                 iterations: 0,
                 covariance_trace: None,
                 ms: 0.0,
-                message: one_line(why),
+                message: one_line(&why.to_string()),
                 verdict: None,
                 reasons: String::new(),
             },
@@ -396,7 +398,7 @@ fn drive<E>(
             timestamp: dataset.frames[index].timestamp,
             estimate: dataset
                 .load(index)
-                .map_err(|e| e.to_string())
+                .map_err(Arc::new)
                 .map(|frame| tracker.track(&frame)),
         };
         let s = &mut out.summary;

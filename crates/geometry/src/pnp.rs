@@ -63,8 +63,6 @@ pub struct PnpResult {
     pub pose: Isometry3<f64>,
     /// Reprojection error under the threshold at the final pose, per correspondence.
     pub inliers: Vec<bool>,
-    /// Number of `true` in `inliers`.
-    pub inlier_count: usize,
     /// Covariance of the left increment `delta = (rho, phi)` at the solution; `None`
     /// (unknown) when not refined or when the refinement's normal equations are singular.
     pub covariance: Option<Matrix6<f64>>,
@@ -74,6 +72,13 @@ pub struct PnpResult {
     pub iterations: usize,
     /// Verdict, support, chance test and uncertainty of the pose ([`pnp_quality`]).
     pub quality: Quality,
+}
+
+impl PnpResult {
+    /// Number of `true` in [`Self::inliers`].
+    pub fn inlier_count(&self) -> usize {
+        self.inliers.iter().filter(|&&b| b).count()
+    }
 }
 
 /// P3P hypotheses scored by the squared reprojection error in normalized coordinates; local
@@ -366,7 +371,6 @@ pub fn solve_pnp_ransac(
     Ok(PnpResult {
         pose,
         inliers,
-        inlier_count,
         covariance,
         rmse_px: (sq / inlier_count as f64).sqrt(),
         iterations,

@@ -75,7 +75,9 @@ pub fn ray_depths(
 /// Inverse-depth-weighted midpoint triangulation (Lee and Civera 2019): with `P1 = l1 f1` and
 /// `P2 = c2 + l2 R^T f2` the closest points of the two rays (camera 1 frame) at distances `d1`,
 /// `d2` from their centres, `X = (P1 / d1 + P2 / d2) / (1 / d1 + 1 / d2)`, which splits the
-/// ray gap into equal angular errors in both views. `None` for parallel rays.
+/// ray gap into equal angular errors in both views. `None` for parallel rays and when either
+/// closest point lies behind its centre (`l1 <= 0` or `l2 <= 0`): nearly parallel rays of a far
+/// point can meet behind the cameras, and such a point is no triangulation.
 ///
 /// ```
 /// use nalgebra::{Isometry3, Point3, Vector3};
@@ -91,11 +93,14 @@ pub fn triangulate_midpoint(
     f2: &Vector3<f64>,
 ) -> Option<Point3<f64>> {
     let (l1, l2) = ray_depths(pose, f1, f2)?;
+    if !(l1 > 0.0 && l2 > 0.0) {
+        return None;
+    }
     let rt = pose.rotation.inverse();
     let c2 = -(rt * pose.translation.vector);
     let d2 = rt * f2;
     let (p1, p2) = (f1 * l1, c2 + d2 * l2);
-    let (w1, w2) = (1.0 / (f1.norm() * l1.abs()), 1.0 / (d2.norm() * l2.abs()));
+    let (w1, w2) = (1.0 / (f1.norm() * l1), 1.0 / (d2.norm() * l2));
     let p = if w1.is_finite() && w2.is_finite() {
         (p1 * w1 + p2 * w2) / (w1 + w2)
     } else {
@@ -146,4 +151,30 @@ pub fn triangulate_corrected(
 pub fn parallax_deg(pose: &Isometry3<f64>, p: &Point3<f64>) -> f64 {
     let c2 = -(pose.rotation.inverse() * pose.translation.vector);
     crate::lie::direction_angle_deg(&p.coords, &(p.coords - c2))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Camera 2 one unit right of camera 1, no rotation: both rays look forward (`z > 0`) but
+    /// their lines meet at `(0.5, 0, -5)`, behind both centres.
+    #[test]
+    fn rays_meeting_behind_the_cameras_give_no_point() {
+        let pose = Isometry3::translation(-1.0, 0.0, 0.0);
+        let f1 = Vector3::new(-0.5, 0.0, 5.0);
+        let f2 = Vector3::new(0.5, 0.0, 5.0);
+        let (l1, l2) = ray_depths(&pose, &f1, &f2).unwrap();
+        assert!(l1 < 0.0 && l2 < 0.0, "{l1} {l2}");
+        assert_eq!(triangulate_midpoint(&pose, &f1, &f2), None);
+        assert_eq!(triangulate_corrected(&pose, &f1, &f2), None);
+        // The mirrored rays meet in front, at (0.5, 0, 5).
+        let p = triangulate_midpoint(
+            &pose,
+            &Vector3::new(0.5, 0.0, 5.0),
+            &Vector3::new(-0.5, 0.0, 5.0),
+        )
+        .unwrap();
+        assert!((p - Point3::new(0.5, 0.0, 5.0)).norm() < 1e-12);
+    }
 }

@@ -87,16 +87,25 @@ proptest! {
     fn pnp_on_fisheye_pixels_recovers_the_pose(seed in 0u64..1_000_000) {
         let (t_cw, world, pixels) = pnp_scene(seed);
         let fit = solve_pnp_ransac(&world, &pixels, &fisheye(), None, &PnpConfig::default()).unwrap();
+        let meets_bounds = |fit: &vofront_geometry::pnp::PnpResult| {
+            let (rot, trans) = pose_error(&fit.pose, &t_cw);
+            rot < 0.2 && trans < 0.03 && fit.inlier_count() >= 110
+        };
         let (rot, trans) = pose_error(&fit.pose, &t_cw);
         prop_assert!(rot < 0.2 && trans < 0.03, "rotation {rot} deg, translation {trans} m");
-        prop_assert!(fit.inlier_count >= 110, "{} inliers", fit.inlier_count);
-        // Read with the wrong (pinhole) model the same pixels give a much worse fit.
+        prop_assert!(fit.inlier_count() >= 110, "{} inliers", fit.inlier_count());
+        // Read with the wrong (pinhole) model the same pixels fail those bounds: the centre of
+        // the image (where tan(theta) is close to theta) can still give a fair pose from half
+        // the points, but not the full support and accuracy.
         let wrong = solve_pnp_ransac(&world, &pixels, &as_pinhole(), None, &PnpConfig::default());
-        prop_assert!(wrong.map_or(true, |w| w.inlier_count < fit.inlier_count / 2
-            || pose_error(&w.pose, &t_cw).0 > 1.0));
+        prop_assert!(wrong.map_or(true, |w| !meets_bounds(&w)));
     }
 
     /// 200 points seen from both frames through the fisheye lens, 0.3 px noise, 10% outliers.
+    /// Bounds: over 150 seeds the rotation error has median 0.07 deg, 95th percentile 0.14 deg
+    /// and maximum 0.21 deg; the wide exploration (4096 cases) met 0.31 deg (seed 962824, the
+    /// same for every RANSAC seed: the optimum of that noise draw), so 0.4 deg; the direction
+    /// bound is the same spread at the 2-6 deg parallax of these scenes.
     #[test]
     fn relative_pose_on_fisheye_pixels_recovers_the_motion(seed in 0u64..1_000_000) {
         let mut rng = StdRng::seed_from_u64(seed);
@@ -119,6 +128,6 @@ proptest! {
         let fit = estimate_relative_pose(&u1, &u2, &cam, &RelativePoseConfig::default()).unwrap();
         let rot = fit.pose.rotation.angle_to(&t_21.rotation).to_degrees();
         let direction = fit.pose.translation.vector.normalize().dot(&t_21.translation.vector.normalize()).clamp(-1.0, 1.0).acos().to_degrees();
-        prop_assert!(rot < 0.3 && direction < 3.0, "rotation {rot} deg, direction {direction} deg");
+        prop_assert!(rot < 0.4 && direction < 3.0, "rotation {rot} deg, direction {direction} deg");
     }
 }

@@ -141,7 +141,7 @@ fn prior_is_used_when_it_is_the_best_hypothesis() {
     };
     let res = solve_pnp_ransac(&world, &px, &cam, Some(t_cw), &cfg).unwrap();
     assert!((res.pose.to_homogeneous() - t_cw.to_homogeneous()).norm() < 1e-6);
-    assert_eq!(res.inlier_count, 50);
+    assert_eq!(res.inlier_count(), 50);
 }
 
 #[test]
@@ -180,9 +180,9 @@ fn pnp_bad_input_gives_typed_errors() {
     match solve_pnp_ransac(&world, &shuffled, &cam, None, &cfg) {
         Err(_) => {}
         Ok(res) => assert!(
-            res.inlier_count <= world.len() / 2,
+            res.inlier_count() <= world.len() / 2,
             "{} of {} random matches called inliers",
-            res.inlier_count,
+            res.inlier_count(),
             world.len()
         ),
     }

@@ -205,7 +205,7 @@ impl MonoTracker {
             let better = again
                 .fit
                 .as_ref()
-                .is_ok_and(|fit| fit.inlier_count > first.inlier_count);
+                .is_ok_and(|fit| fit.inlier_count() > first.inlier_count());
             if better {
                 located = again;
             }
@@ -270,14 +270,14 @@ impl MonoTracker {
         );
         // A weakly supported pose may be wrong; as a keyframe it would build new points on
         // that error, and later frames would agree with them: it only tracks.
-        let ratio = fit.inlier_count as f64 / matches.len().max(1) as f64;
-        let supported = fit.inlier_count >= self.cfg.min_keyframe_inliers
+        let ratio = fit.inlier_count() as f64 / matches.len().max(1) as f64;
+        let supported = fit.inlier_count() >= self.cfg.min_keyframe_inliers
             || ratio >= self.cfg.keyframe_clean_ratio;
         let keyframe = supported
             && (parallax >= self.cfg.keyframe_parallax_deg
                 || self.cfg.keyframe.needs_keyframe(&view));
         let quality = FrameQuality {
-            inliers: fit.inlier_count,
+            inliers: fit.inlier_count(),
             inlier_ratio: ratio,
             rmse: fit.rmse_px,
             iterations: fit.iterations,

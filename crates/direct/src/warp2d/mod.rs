@@ -30,6 +30,13 @@ use select::RefPixels;
 
 /// Smallest side of the coarsest pyramid level, pixels.
 const MIN_LEVEL_SIDE: usize = 16;
+/// A level's reference pixels are those its starting warp maps at least this far (pixels of
+/// the level) inside image 2. The set is then fixed for the level: the cost that the LM loop
+/// compares between steps is a mean over the same pixels, and a step cannot lower it by
+/// pushing badly fitting pixels out of the image (which biased warps near the border, e.g.
+/// by 0.025 px on a 4 px shift). The steps within a level stay below this after the coarser
+/// levels' start.
+const LEVEL_MARGIN_PX: f64 = 2.0;
 /// Reference pixels needed per parameter for a level to be used.
 const PIXELS_PER_PARAMETER: usize = 8;
 /// Coarse levels keep at least this many pixels (when that many qualify), whatever their
@@ -449,7 +456,8 @@ pub(crate) fn align_2d<const M: usize>(
     let mut last = None;
     for level in (0..levels).rev() {
         let (p1, p2) = (&pyr1.levels[level], &pyr2.levels[level]);
-        let reference = RefPixels::select(p1, cfg.gradient_threshold, level_budget(cfg, level));
+        let mut reference = RefPixels::select(p1, cfg.gradient_threshold, level_budget(cfg, level));
+        reference.retain_inside(&state.h, p2.width(), p2.height(), LEVEL_MARGIN_PX);
         if reference.len() < min_pixels {
             if level == 0 {
                 return Err(DirectError::NoTexture {

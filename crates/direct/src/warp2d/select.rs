@@ -2,6 +2,8 @@
 //! `(gx, gy) = ((I(x+1) - I(x-1)) / 2, (I(y+1) - I(y-1)) / 2)` is at least a threshold, with
 //! their grey levels and gradients, in structure-of-arrays form.
 
+use nalgebra::{Matrix3, Vector3};
+
 use crate::plane::Plane;
 
 /// Reference pixels of one level, structure of arrays.
@@ -61,7 +63,72 @@ impl RefPixels {
         out
     }
 
+    /// Keeps the pixels that `h` maps at least `margin` pixels inside the bilinear footprint
+    /// of a `width x height` target (`0 <= u < width - 1`, the same for `v`), so that the set
+    /// of residuals stays the same while a level's steps move the warp by less than `margin`.
+    pub(super) fn retain_inside(
+        &mut self,
+        h: &Matrix3<f64>,
+        width: usize,
+        height: usize,
+        margin: f64,
+    ) {
+        let inside = |x: f32, y: f32| {
+            let p = h * Vector3::new(f64::from(x), f64::from(y), 1.0);
+            let (u, v) = (p.x / p.z, p.y / p.z);
+            u >= margin
+                && v >= margin
+                && u < width as f64 - 1.0 - margin
+                && v < height as f64 - 1.0 - margin
+        };
+        let keep: Vec<bool> = self
+            .x
+            .iter()
+            .zip(&self.y)
+            .map(|(&x, &y)| inside(x, y))
+            .collect();
+        for column in [
+            &mut self.x,
+            &mut self.y,
+            &mut self.value,
+            &mut self.gx,
+            &mut self.gy,
+        ] {
+            let mut k = keep.iter();
+            column.retain(|_| *k.next().expect("one flag per pixel"));
+        }
+    }
+
     pub(super) fn len(&self) -> usize {
         self.x.len()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A shift by 3.5 px to the right keeps the pixels with `x + 3.5` at least 2 px inside
+    /// the 20 px wide footprint (`x + 3.5 < 17`, i.e. `x <= 13`), every row alike, with their
+    /// values and gradients.
+    #[test]
+    fn retain_inside_keeps_the_pixels_mapped_inside_the_margin() {
+        let data = (0..20 * 10).map(|i| ((i * 37) % 101) as f32).collect();
+        let img = Plane::new(20, 10, data).unwrap();
+        let mut px = RefPixels::select(&img, 0.0, 0);
+        let all = px.len();
+        let before: Vec<(f32, f32, f32)> =
+            (0..all).map(|i| (px.x[i], px.y[i], px.value[i])).collect();
+        let shift = Matrix3::new(1.0, 0.0, 3.5, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0);
+        px.retain_inside(&shift, 20, 10, 2.0);
+        let expected: Vec<(f32, f32, f32)> = before
+            .into_iter()
+            .filter(|&(x, y, _)| x <= 13.0 && (2.0..=6.0).contains(&y))
+            .collect();
+        let kept: Vec<(f32, f32, f32)> = (0..px.len())
+            .map(|i| (px.x[i], px.y[i], px.value[i]))
+            .collect();
+        assert_eq!(kept, expected);
+        assert!(px.gx.len() == px.len() && px.gy.len() == px.len() && px.len() < all);
     }
 }

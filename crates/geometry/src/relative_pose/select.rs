@@ -55,8 +55,8 @@ impl Selection {
     /// Inliers of `model`'s fit (zero when it was not found).
     pub fn support(&self, model: Model) -> usize {
         match model {
-            Model::Homography => self.homography.as_ref().map_or(0, |h| h.inlier_count),
-            Model::Essential => self.essential.as_ref().map_or(0, |e| e.inlier_count),
+            Model::Homography => self.homography.as_ref().map_or(0, |h| h.inlier_count()),
+            Model::Essential => self.essential.as_ref().map_or(0, |e| e.inlier_count()),
         }
     }
 }
@@ -71,7 +71,7 @@ pub(super) fn select_model(tv: &TwoView) -> Selection {
     let h_iterations = essential.as_ref().map_or(cfg.ransac.max_iterations, |e| {
         required_iterations(
             rcfg.confidence,
-            e.inlier_count as f64 / data.len() as f64,
+            e.inlier_count() as f64 / data.len() as f64,
             4,
         )
     });
