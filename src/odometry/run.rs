@@ -19,8 +19,9 @@ use super::{reasons_text, FrameEstimate, TrackStatus, Tracker};
 use crate::dataset::Dataset;
 use crate::trajectory::Trajectory;
 
-/// What happened to one frame of the dataset.
-#[derive(Debug, Clone, PartialEq)]
+/// What happened to one frame of the dataset (`Serialize`: `estimate` is `{"Ok": {...}}` or
+/// `{"Err": "why"}`, serde's spelling of a `Result`).
+#[derive(Debug, Clone, PartialEq, serde::Serialize)]
 pub struct FrameRecord {
     /// Index in the dataset.
     pub index: usize,
@@ -42,7 +43,7 @@ impl FrameRecord {
 }
 
 /// Counts over a run.
-#[derive(Debug, Clone, Copy, PartialEq, Default)]
+#[derive(Debug, Clone, Copy, PartialEq, Default, serde::Serialize)]
 pub struct RunSummary {
     /// Frames attempted.
     pub frames: usize,
@@ -80,7 +81,7 @@ impl RunSummary {
 }
 
 /// The result of [`run`] and [`run_with`].
-#[derive(Debug, Clone, Default)]
+#[derive(Debug, Clone, Default, serde::Serialize)]
 pub struct RunOutput {
     /// Poses of the frames that were tracked (ok or reinitialised), camera-to-world.
     pub trajectory: Trajectory,
