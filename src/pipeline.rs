@@ -64,12 +64,14 @@ pub enum VoError {
     },
 }
 
-/// Wall-clock time of each stage of [`TwoViewEstimator::relative_pose`], milliseconds.
-#[derive(Debug, Clone, Copy, Default, PartialEq)]
+/// Wall-clock time of each stage of [`TwoViewEstimator::relative_pose`], milliseconds; the
+/// `ms` object of the `two-view` JSON (`matching` spelt `match` there).
+#[derive(Debug, Clone, Copy, Default, PartialEq, serde::Serialize)]
 pub struct FeatureTimings {
     /// ORB on both images.
     pub detect: f64,
     /// Descriptor matching.
+    #[serde(rename = "match")]
     pub matching: f64,
     /// RANSAC, model selection, pose recovery and refinement.
     pub estimate: f64,
@@ -78,7 +80,7 @@ pub struct FeatureTimings {
 }
 
 /// The feature-based relative pose and everything it was computed from.
-#[derive(Debug, Clone)]
+#[derive(Debug, Clone, serde::Serialize)]
 pub struct FeaturePose {
     /// Pose `T_21` (unit translation), inliers, model, parallax.
     pub estimate: RelativePose,

@@ -64,8 +64,9 @@ pub enum TrajectoryError {
     },
 }
 
-/// A timestamped camera trajectory: `poses[k] = (t_k seconds, T_wc at t_k)`.
-#[derive(Debug, Clone, Default, PartialEq)]
+/// A timestamped camera trajectory: `poses[k] = (t_k seconds, T_wc at t_k)` (`Serialize`:
+/// `{"poses": [[t, {"rotation": [qi, qj, qk, qw], "translation": [x, y, z]}], ...]}`).
+#[derive(Debug, Clone, Default, PartialEq, serde::Serialize)]
 pub struct Trajectory {
     /// `(timestamp in seconds, camera-to-world pose)` in file order.
     pub poses: Vec<(f64, Isometry3<f64>)>,

@@ -250,6 +250,62 @@ fn relpose_recovers_the_pose_from_a_csv() {
     std::fs::remove_dir_all(&dir).ok();
 }
 
+/// The `quality` object of `relpose --json` is the library's record: the serialisation of
+/// `estimate_relative_pose(...).quality` computed in this process on the same CSV and camera
+/// (both sides read through the same JSON text, so equal numbers compare equal), and the
+/// `model` and `inliers` keys are the estimate's too.
+#[test]
+fn relpose_quality_is_the_library_record() {
+    use vofront::geometry::{estimate_relative_pose, Camera, Pinhole, RelativePoseConfig};
+    use vofront::input::load_correspondences;
+    let dir = temp_dir("relpose-record");
+    let cam = Camera::pinhole(Pinhole::new(520.0, 510.0, 322.0, 241.0).unwrap());
+    let truth = Isometry3::new(
+        Vector3::new(0.2, -0.05, 0.1),
+        Vector3::new(-0.03, 0.08, 0.01),
+    );
+    let mut csv = String::from("x1,y1,x2,y2\n");
+    for i in 0..200 {
+        let (a, b) = ((i as f64 * 0.618).fract(), (i as f64 * 0.7548).fract());
+        let p = Point3::new(
+            4.0 * a - 2.0,
+            3.0 * b - 1.5,
+            2.0 + 6.0 * ((i * 7 % 13) as f64 / 13.0),
+        );
+        let (u1, u2) = (cam.project(&p.coords), cam.project(&(truth * p).coords));
+        let (Some(u1), Some(mut u2)) = (u1, u2) else {
+            continue;
+        };
+        if i % 5 == 0 {
+            u2 = Vector2::new(640.0 * b, 480.0 * a); // a gross outlier
+        }
+        csv += &format!("{},{},{},{}\n", u1.x, u1.y, u2.x, u2.y);
+    }
+    let path = dir.join("m.csv");
+    std::fs::write(&path, csv).unwrap();
+    let flags = ["--fx", "520", "--fy", "510", "--cx", "322", "--cy", "241"];
+    let mut args = vec!["relpose", "m.csv", "--json"];
+    args.extend_from_slice(&flags);
+    let out = vofront(&args, &dir);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let printed: Value = serde_json::from_slice(&out.stdout).unwrap();
+
+    let c = load_correspondences(&path).unwrap();
+    let fit = estimate_relative_pose(&c.x1, &c.x2, &cam, &RelativePoseConfig::default()).unwrap();
+    let text = serde_json::to_string(&fit.quality).unwrap();
+    let record: Value = serde_json::from_str(&text).unwrap();
+    assert_eq!(printed["quality"], record);
+    assert_eq!(printed["quality"]["verdict"], "ok", "{printed}");
+    assert!(!fit.inliers.iter().all(|&b| b), "the outliers are found");
+    assert_eq!(printed["inliers"], fit.inlier_count());
+    assert_eq!(printed["model"], serde_json::to_value(fit.model).unwrap());
+    std::fs::remove_dir_all(&dir).ok();
+}
+
 #[test]
 fn bad_input_gives_one_line_and_non_zero_exit() {
     let dir = temp_dir("bad");

@@ -181,7 +181,7 @@ impl Stats {
 }
 
 /// Result of [`ate`].
-#[derive(Debug, Clone, PartialEq)]
+#[derive(Debug, Clone, PartialEq, serde::Serialize)]
 pub struct AteResult {
     /// Associated index pairs `(ground-truth index, estimate index)`.
     pub pairs: Vec<(usize, usize)>,

@@ -72,7 +72,7 @@ impl Default for RpeConfig {
 }
 
 /// Result of [`rpe_with`].
-#[derive(Debug, Clone, PartialEq)]
+#[derive(Debug, Clone, PartialEq, serde::Serialize)]
 pub struct RpeResult {
     /// Associated index pairs `(ground-truth index, estimate index)`.
     pub pairs: Vec<(usize, usize)>,

@@ -10,8 +10,9 @@ use nalgebra::{Isometry3, Matrix3, Rotation3, Translation3, UnitQuaternion, Vect
 
 use super::EvalError;
 
-/// A similarity transform `y = s R x + t` (for `s = 1` a rigid motion).
-#[derive(Debug, Clone, Copy, PartialEq)]
+/// A similarity transform `y = s R x + t` (for `s = 1` a rigid motion; `Serialize`:
+/// `rotation` as `[qi, qj, qk, qw]`).
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
 pub struct Sim3 {
     /// Rotation `R`.
     pub rotation: UnitQuaternion<f64>,

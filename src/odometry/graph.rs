@@ -59,7 +59,7 @@ pub fn g2o_error_vector(delta: &Isometry3<f64>) -> Vector6<f64> {
 }
 
 /// One `EDGE_SE3:QUAT` constraint.
-#[derive(Debug, Clone, PartialEq)]
+#[derive(Debug, Clone, PartialEq, serde::Serialize)]
 pub struct G2oEdge {
     /// Vertex `i` (the keyframe tracked against).
     pub from: usize,
@@ -85,7 +85,7 @@ impl G2oEdge {
 }
 
 /// The vertices and edges of a g2o file.
-#[derive(Debug, Clone, PartialEq, Default)]
+#[derive(Debug, Clone, PartialEq, Default, serde::Serialize)]
 pub struct G2oGraph {
     /// `(id, T_wi)` in file order.
     pub vertices: Vec<(usize, Isometry3<f64>)>,

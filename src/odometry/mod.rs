@@ -33,8 +33,9 @@ use vofront_robust::{Quality, Verdict};
 use crate::dataset::Frame;
 use motion::ConstantVelocity;
 
-/// How tracking of one frame went.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+/// How tracking of one frame went; the JSON spelling is [`TrackStatus::as_str`].
+#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize)]
+#[serde(rename_all = "lowercase")]
 pub enum TrackStatus {
     /// Aligned to the keyframe, with an `ok` verdict.
     Ok,
@@ -63,7 +64,7 @@ impl TrackStatus {
 }
 
 /// Quality scores of one frame's estimate.
-#[derive(Debug, Clone, Copy, PartialEq, Default)]
+#[derive(Debug, Clone, Copy, PartialEq, Default, serde::Serialize)]
 pub struct FrameQuality {
     /// Inlier residuals (pixels for direct, correspondences for feature trackers).
     pub inliers: usize,
@@ -82,8 +83,9 @@ pub struct FrameQuality {
     pub ms: f64,
 }
 
-/// A tracker's answer for one frame.
-#[derive(Debug, Clone, PartialEq)]
+/// A tracker's answer for one frame (`Serialize`: `pose_wc` is
+/// `{"rotation": [qi, qj, qk, qw], "translation": [x, y, z]}`, nalgebra's layout).
+#[derive(Debug, Clone, PartialEq, serde::Serialize)]
 pub struct FrameEstimate {
     /// Camera-to-world pose `T_wc`.
     pub pose_wc: Isometry3<f64>,

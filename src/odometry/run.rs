@@ -20,8 +20,9 @@ use super::{reasons_text, FrameEstimate, TrackStatus, Tracker};
 use crate::dataset::{Dataset, DatasetError};
 use crate::trajectory::Trajectory;
 
-/// What happened to one frame of the dataset.
-#[derive(Debug, Clone)]
+/// What happened to one frame of the dataset (`Serialize`: `estimate` is `{"Ok": {...}}` or
+/// `{"Err": "why"}`, serde's spelling of a `Result`, the error as its message).
+#[derive(Debug, Clone, serde::Serialize)]
 pub struct FrameRecord {
     /// Index in the dataset.
     pub index: usize,
@@ -29,7 +30,19 @@ pub struct FrameRecord {
     pub timestamp: f64,
     /// The tracker's estimate, or why the frame could not be read (shared, so that a record
     /// stays cheap to clone).
+    #[serde(serialize_with = "estimate_or_message")]
     pub estimate: Result<FrameEstimate, Arc<DatasetError>>,
+}
+
+/// Serialises a frame's `Result` with the error as its message.
+fn estimate_or_message<S: serde::Serializer>(
+    estimate: &Result<FrameEstimate, Arc<DatasetError>>,
+    serializer: S,
+) -> Result<S::Ok, S::Error> {
+    estimate
+        .as_ref()
+        .map_err(|why| why.to_string())
+        .serialize(serializer)
 }
 
 impl FrameRecord {
@@ -44,7 +57,7 @@ impl FrameRecord {
 }
 
 /// Counts over a run.
-#[derive(Debug, Clone, Copy, PartialEq, Default)]
+#[derive(Debug, Clone, Copy, PartialEq, Default, serde::Serialize)]
 pub struct RunSummary {
     /// Frames attempted.
     pub frames: usize,
@@ -82,7 +95,7 @@ impl RunSummary {
 }
 
 /// The result of [`run`] and [`run_with`].
-#[derive(Debug, Clone, Default)]
+#[derive(Debug, Clone, Default, serde::Serialize)]
 pub struct RunOutput {
     /// Poses of the frames that were tracked (ok or reinitialised), camera-to-world.
     pub trajectory: Trajectory,

@@ -1,6 +1,10 @@
 //! What the command line prints, as library types: every report here derives
 //! `serde::Serialize`, and the `vofront` program's JSON is exactly their serialisation, so a
-//! library user gets the same record as a shell user.
+//! library user gets the same record as a shell user. Where a report carries a library record
+//! it embeds it rather than copying fields: the `quality` objects are the estimates' own
+//! [`vofront_robust::Quality`], `model` the geometry crate's `Model` and the feature `ms` the
+//! pipeline's [`crate::pipeline::FeatureTimings`]. The raw results themselves
+//! (`RelativePose`, `Se3Result`, `FrameEstimate`, ...) derive `Serialize` as well.
 //!
 //! - [`two_view`]: feature and direct estimates of one frame pair ([`two_view::estimate`],
 //!   [`two_view::TwoViewReport`], the `two-view` command's JSON).

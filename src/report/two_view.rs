@@ -16,7 +16,9 @@ use vofront_robust::{Quality, QualityConfig};
 
 use super::{rotation_rows, Entry, Rows3};
 use crate::input::DepthMap;
-use crate::pipeline::{depth_plane, gray_plane, ms_since, FeaturePose, TwoViewEstimator};
+use crate::pipeline::{
+    depth_plane, gray_plane, ms_since, FeaturePose, FeatureTimings, TwoViewEstimator,
+};
 
 /// Which estimators [`estimate`] runs.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
@@ -295,19 +297,9 @@ pub struct TwoViewReport {
     pub recommended: Option<Recommendation>,
 }
 
-/// Wall-clock time per stage of the feature pipeline, milliseconds.
-#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
-pub struct FeatureMs {
-    /// ORB on both images.
-    pub detect: f64,
-    /// Descriptor matching.
-    #[serde(rename = "match")]
-    pub matching: f64,
-    /// RANSAC, model selection, pose recovery and refinement.
-    pub estimate: f64,
-    /// Everything.
-    pub total: f64,
-}
+/// Wall-clock time per stage of the feature pipeline, milliseconds: the pipeline's own
+/// [`FeatureTimings`] record (keys `detect`, `match`, `estimate`, `total`).
+pub type FeatureMs = FeatureTimings;
 
 /// A relative pose `T_21` (unit translation) from correspondences: the keys `relpose` prints
 /// and two-view's `feature` object starts with.
@@ -322,11 +314,12 @@ pub struct PoseReport {
     pub matches: usize,
     /// Correspondences consistent with the pose.
     pub inliers: usize,
-    /// Selected model: `essential` or `homography`.
-    pub model: &'static str,
+    /// Selected model, serialised `essential` or `homography` (the library's [`Model`]).
+    pub model: Model,
     /// Median parallax angle of the inliers, degrees.
     pub parallax_deg: f64,
-    /// Verdict, reasons, support, noise scale, covariance and sigmas.
+    /// Verdict, reasons, support, noise scale, covariance and sigmas: the estimate's own
+    /// [`RelativePose::quality`] record.
     pub quality: Quality,
 }
 
@@ -339,7 +332,7 @@ impl PoseReport {
             t: [t.x, t.y, t.z],
             matches,
             inliers: e.inlier_count(),
-            model: model_name(e.model),
+            model: e.model,
             parallax_deg: e.parallax_deg,
             quality: e.quality.clone(),
         }
@@ -372,12 +365,7 @@ impl FeatureReport {
         Self {
             pose: PoseReport::new(&f.estimate, f.matches.len()),
             keypoints: [f.features[0].len(), f.features[1].len()],
-            ms: FeatureMs {
-                detect: f.timings.detect,
-                matching: f.timings.matching,
-                estimate: f.timings.estimate,
-                total: f.timings.total,
-            },
+            ms: f.timings,
         }
     }
 }

@@ -14,6 +14,12 @@
 //! (module `lm`) whose normal equations are accumulated in parallel with rayon, and returns typed
 //! [`DirectError`]s for bad input (size mismatch, flat images, degenerate geometry).
 //!
+//! The results ([`TranslationResult`], [`WarpResult`], [`Se3Result`]) derive `serde::Serialize`,
+//! fields under their Rust names, in nalgebra's layouts: [`Se3Result::pose`] is
+//! `{"rotation": [qi, qj, qk, qw], "translation": [x, y, z]}` (the unit quaternion's vector part,
+//! then its scalar), vectors are arrays, fixed-size matrices (the 6x6 covariance of `(rho, phi)`)
+//! one flat column-major array, and [`Se3Result::reason`] the snake_case stop reason.
+//!
 //! ```
 //! use vofront_direct::translation::{align_translation, TranslationConfig};
 //! use vofront_direct::Plane;

@@ -65,8 +65,9 @@ impl Default for TranslationConfig {
     }
 }
 
-/// Result of [`align_translation`].
-#[derive(Debug, Clone, PartialEq)]
+/// Result of [`align_translation`] (`Serialize`: `d` as `[x, y]`, `covariance` as a flat
+/// column-major array).
+#[derive(Debug, Clone, PartialEq, serde::Serialize)]
 pub struct TranslationResult {
     /// The shift `d`, pixels, with `I2(x + d) = I1(x)`.
     pub d: Vector2<f64>,

@@ -3,7 +3,7 @@
 /// A 256-bit steered-BRIEF descriptor. Bit `i` (test `i` of [`crate::pattern::BIT_PATTERN_31`])
 /// is bit `i % 64` of lane `i / 64`, so [`Descriptor::to_bytes`] gives exactly OpenCV's 32-byte
 /// ORB layout (byte `j`, bit `k` = test `8 j + k`).
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Default)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Default, serde::Serialize)]
 pub struct Descriptor(pub [u64; 4]);
 
 impl Descriptor {

@@ -32,7 +32,7 @@ impl Default for MatchConfig {
 }
 
 /// A match of query feature `query` to train feature `train` at Hamming distance `distance`.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, serde::Serialize)]
 pub struct Match {
     /// Index into the query set.
     pub query: u32,

@@ -71,7 +71,7 @@ impl OrbConfig {
 }
 
 /// One ORB feature (an entry of [`Features`]).
-#[derive(Debug, Clone, Copy, PartialEq)]
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
 pub struct Feature {
     /// x in level-0 pixels, to the right.
     pub x: f32,
@@ -93,8 +93,10 @@ pub struct Feature {
 /// ORB features as a structure of arrays; entry `i` of every array is feature `i` (see
 /// [`Feature`] for the meaning of each). Positions are level-0 pixels (pixel `(0, 0)` is the
 /// centre of the top-left pixel). The arrays always have equal lengths: they are built by
-/// [`Features::new`] (checked), [`Features::push`] or collected from [`Feature`]s.
-#[derive(Debug, Clone, Default, PartialEq)]
+/// [`Features::new`] (checked), [`Features::push`] or collected from [`Feature`]s. Serialised
+/// as those arrays (`xs`, `ys`, `levels`, `scales`, `angles`, `responses`, `descriptors`, each
+/// descriptor its four 64-bit lanes).
+#[derive(Debug, Clone, Default, PartialEq, serde::Serialize)]
 pub struct Features {
     xs: Vec<f32>,
     ys: Vec<f32>,

@@ -91,8 +91,9 @@ const EQUAL_SINGULAR: f64 = 1e-5;
 /// becomes one; at this gap the merged twins are `1e-6` rad apart.
 const TWIN_MERGE: f64 = 1e-12;
 
-/// Outcome of [`decompose_homography`].
-#[derive(Debug, Clone, PartialEq)]
+/// Outcome of [`decompose_homography`]; serialised externally tagged (`{"Motion": [[R, t, n],
+/// ...]}`, `{"Rotation": R}`, `"Degenerate"`), each `R` a flat column-major array.
+#[derive(Debug, Clone, PartialEq, serde::Serialize)]
 pub enum HomographyDecomposition {
     /// Up to eight `(R, t, n)`, unit `t` and unit plane normal `n`, with `H ~ R + t n^T` up
     /// to the sign of `n`, which is returned towards the camera (`n_z > 0`); the chirality test

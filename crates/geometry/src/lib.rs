@@ -15,6 +15,16 @@
 //! Pose convention everywhere: `T_21: Isometry3<f64>` maps points of frame 1 into frame 2,
 //! `x2 = R x1 + t`.
 //!
+//! Every result type ([`RelativePose`], [`PnpResult`], [`BundleReport`],
+//! [`homography::HomographyDecomposition`], [`essential::PoseRecovery`],
+//! [`ransac::RansacResult`], [`relative_pose::RelRefinement`]) derives
+//! `serde::Serialize`, fields under their Rust names, with nalgebra's own layouts: an
+//! `Isometry3` is `{"rotation": [qi, qj, qk, qw], "translation": [x, y, z]}` (the unit
+//! quaternion's vector part first, then its scalar), a `Point3` or `Vector3` is `[x, y, z]`, and a
+//! fixed-size matrix (`Matrix3`, `Rotation3`, `Matrix6` covariances) is one flat array in
+//! column-major order. The [`vofront_robust::Quality`] inside is the record the `vofront` JSON
+//! prints.
+//!
 //! The main entry point, two pixel point lists in, the relative pose out:
 //!
 //! ```

@@ -57,7 +57,7 @@ impl Default for PnpConfig {
 }
 
 /// Result of [`solve_pnp_ransac`].
-#[derive(Debug, Clone, PartialEq)]
+#[derive(Debug, Clone, PartialEq, serde::Serialize)]
 pub struct PnpResult {
     /// `T_cw`: world (reference) points into the camera frame.
     pub pose: Isometry3<f64>,

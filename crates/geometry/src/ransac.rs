@@ -125,8 +125,8 @@ impl Default for RansacConfig {
     }
 }
 
-/// Best model and its support.
-#[derive(Debug, Clone)]
+/// Best model and its support (`Serialize` when the model is).
+#[derive(Debug, Clone, serde::Serialize)]
 pub struct RansacResult<M> {
     /// The best model.
     pub model: M,

@@ -15,6 +15,7 @@
 //! solution, `None` when `H` is singular.
 
 use nalgebra::{SMatrix, SVector};
+use serde::Serialize;
 
 use crate::lm::{levenberg_marquardt, Convergence, LmConfig, LmError, LmProblem};
 use crate::loss::{Loss, RobustLoss};
@@ -104,8 +105,9 @@ impl Default for IrlsConfig {
 /// What [`irls`] could not do: the driver's errors.
 pub type IrlsError = LmError;
 
-/// The estimate and how it was reached.
-#[derive(Debug, Clone)]
+/// The estimate and how it was reached (`Serialize` when the state is; matrices as nalgebra
+/// writes them, a flat column-major array).
+#[derive(Debug, Clone, Serialize)]
 pub struct IrlsResult<S, const N: usize> {
     /// The final state.
     pub state: S,

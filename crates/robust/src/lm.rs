@@ -23,6 +23,7 @@
 //!    `max_iterations` (accepted and rejected steps both count).
 
 use nalgebra::SVector;
+use serde::Serialize;
 use thiserror::Error;
 
 use crate::normal::NormalEquations;
@@ -150,8 +151,9 @@ impl Default for LmConfig {
     }
 }
 
-/// Why [`levenberg_marquardt`] stopped.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+/// Why [`levenberg_marquardt`] stopped; the JSON spelling is the snake_case name.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "snake_case")]
 pub enum Convergence {
     /// The step was small (see [`LmConfig::min_step`], [`LmConfig::min_step_sigmas`]).
     SmallStep,

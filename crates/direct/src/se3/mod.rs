@@ -108,7 +108,7 @@ impl Default for Se3Config {
 }
 
 /// Result of [`align_se3`].
-#[derive(Debug, Clone, PartialEq)]
+#[derive(Debug, Clone, PartialEq, serde::Serialize)]
 pub struct Se3Result {
     /// `T_cur_ref`: maps points of the reference camera frame into the current one.
     pub pose: Isometry3<f64>,

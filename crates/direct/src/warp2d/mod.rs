@@ -125,8 +125,10 @@ impl Default for WarpConfig {
     }
 }
 
-/// Result of [`align_affine`] and [`align_homography`].
-#[derive(Debug, Clone, PartialEq)]
+/// Result of [`align_affine`] and [`align_homography`] (`Serialize`: `h` as a flat
+/// column-major array, the dynamic `covariance` as nalgebra writes it, `[data, rows, cols]`
+/// with column-major `data`).
+#[derive(Debug, Clone, PartialEq, serde::Serialize)]
 pub struct WarpResult {
     /// `H` with `I2(H x) = a I1(x) + b` (pixels of image 1 to pixels of image 2).
     pub h: Matrix3<f64>,

@@ -136,7 +136,7 @@ impl Default for BundleConfig {
 }
 
 /// What [`bundle_adjust`] did.
-#[derive(Debug, Clone, PartialEq)]
+#[derive(Debug, Clone, PartialEq, serde::Serialize)]
 pub struct BundleReport {
     /// Iterations over all rounds (accepted and rejected steps).
     pub iterations: usize,

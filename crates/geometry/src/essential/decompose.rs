@@ -39,7 +39,7 @@ impl Default for RecoverConfig {
 }
 
 /// Result of the chirality test.
-#[derive(Debug, Clone, PartialEq)]
+#[derive(Debug, Clone, PartialEq, serde::Serialize)]
 pub struct PoseRecovery {
     /// `T_21` with a unit translation.
     pub pose: Isometry3<f64>,

@@ -96,7 +96,7 @@ impl Estimator for EssentialEstimator<'_> {
 }
 
 /// A homography and its inverse.
-#[derive(Debug, Clone, Copy, PartialEq)]
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
 pub struct HomographyModel {
     /// `x2 ~ H x1`.
     pub h: Matrix3<f64>,

@@ -88,7 +88,7 @@ impl Problem<5> for SampsonProblem<'_> {
 }
 
 /// A converged refinement of `(R, t)` and its uncertainty.
-#[derive(Debug, Clone, PartialEq)]
+#[derive(Debug, Clone, PartialEq, serde::Serialize)]
 pub struct RelRefinement {
     /// The refined `(R, t)`, unit `t`.
     pub state: RelState,

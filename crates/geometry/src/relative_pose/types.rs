@@ -39,8 +39,10 @@ impl Default for RelativePoseConfig {
     }
 }
 
-/// Which model produced the pose.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+/// Which model produced the pose; the JSON spelling is the lower-case name (`essential`,
+/// `homography`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize)]
+#[serde(rename_all = "lowercase")]
 pub enum Model {
     /// The essential matrix (general scene).
     Essential,
@@ -51,7 +53,14 @@ pub enum Model {
 /// Relative pose `T_21` between two views: the pose, the model it comes from, the inlier set
 /// with its triangulated points, the flags and the quality record (each stored once; the
 /// rotation, translation and counts are accessors).
-#[derive(Debug, Clone, PartialEq)]
+///
+/// Serialised field by field (see the crate documentation for nalgebra's layouts):
+/// `{"pose": {"rotation": [qi, qj, qk, qw], "translation": [x, y, z]}, "model": "essential",
+/// "inliers": [true, ...], "points": [[x, y, z] or null, ...], "parallax_deg", "low_parallax",
+/// "pure_rotation", "ambiguous", "alternative": pose or null, "homography_score_ratio",
+/// "iterations": {"essential", "homography"}, "quality": {...}}`, `quality` being the
+/// [`Quality`] record the `vofront relpose` and `two-view` JSON print.
+#[derive(Debug, Clone, PartialEq, serde::Serialize)]
 pub struct RelativePose {
     /// `T_21 = (R_21, t_21)`, unit translation direction `t_21` (zero for a pure rotation).
     pub pose: Isometry3<f64>,
@@ -109,7 +118,7 @@ impl RelativePose {
 }
 
 /// RANSAC iterations of the two models fitted by [`super::estimate_relative_pose`].
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, serde::Serialize)]
 pub struct RansacIterations {
     /// Iterations of the essential matrix's LO-MSAC.
     pub essential: usize,
