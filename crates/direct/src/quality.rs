@@ -6,7 +6,8 @@
 //! residual variance `rmse^2` under that share of `var(I1) + var(I2)` (the residual variance
 //! of two unrelated images with the same statistics). Under [`FIT_RESIDUAL_SHARE`] the fit
 //! explains the pair; between the two it is [`Reason::HighResidual`]. Support is the number of valid pixels;
-//! the covariance is the aligner's Gauss-Newton `sigma^2 H^-1`.
+//! the covariance is the aligner's Gauss-Newton `sigma^2 H^-1` for the 2D warps and the M-estimator's
+//! sandwich `B^-1 M B^-1` for SE(3) (see `Se3Result::covariance`).
 
 use vofront_robust::quality::{block_rows, rms_of};
 use vofront_robust::{Convergence, Quality, QualityConfig, Reason, Support, Uncertainty};

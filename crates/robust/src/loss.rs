@@ -14,6 +14,10 @@ pub trait RobustLoss {
     fn psi(&self, r: f64) -> f64;
     /// The IRLS weight `psi(r) / r`, taken as its limit `1` at `r = 0`.
     fn weight(&self, r: f64) -> f64;
+    /// The curvature `psi'(r) = d^2 rho / d r^2` (the one-sided value at a kink), which the
+    /// sandwich covariance of an M-estimate needs; negative where a redescending loss bends
+    /// down.
+    fn psi_prime(&self, r: f64) -> f64;
 }
 
 /// Plain least squares: `rho = r^2 / 2`, weight 1.
@@ -28,6 +32,9 @@ impl RobustLoss for Squared {
         r
     }
     fn weight(&self, _r: f64) -> f64 {
+        1.0
+    }
+    fn psi_prime(&self, _r: f64) -> f64 {
         1.0
     }
 }
@@ -62,6 +69,13 @@ impl RobustLoss for Huber {
             self.delta / a
         }
     }
+    fn psi_prime(&self, r: f64) -> f64 {
+        if r.abs() <= self.delta {
+            1.0
+        } else {
+            0.0
+        }
+    }
 }
 
 /// Cauchy (Lorentzian) loss: `rho = c^2/2 ln(1 + (r/c)^2)`, weight `1 / (1 + (r/c)^2)`.
@@ -82,6 +96,11 @@ impl RobustLoss for Cauchy {
     fn weight(&self, r: f64) -> f64 {
         let q = r / self.c;
         1.0 / q.mul_add(q, 1.0)
+    }
+    /// `(1 - q^2) / (1 + q^2)^2`, `q = r / c`.
+    fn psi_prime(&self, r: f64) -> f64 {
+        let q2 = (r / self.c).powi(2);
+        (1.0 - q2) / (1.0 + q2).powi(2)
     }
 }
 
@@ -117,6 +136,15 @@ impl RobustLoss for Tukey {
             u * u
         }
     }
+    /// `(1 - q^2)(1 - 5 q^2)` inside, `q = r / c`; `0` beyond.
+    fn psi_prime(&self, r: f64) -> f64 {
+        if r.abs() >= self.c {
+            0.0
+        } else {
+            let q2 = (r / self.c).powi(2);
+            (1.0 - q2) * (1.0 - 5.0 * q2)
+        }
+    }
 }
 
 /// Student-t loss with `nu` degrees of freedom, the usual model of photometric residuals.
@@ -139,6 +167,10 @@ impl RobustLoss for StudentT {
     }
     fn weight(&self, r: f64) -> f64 {
         self.nu / (self.nu + r * r)
+    }
+    /// `nu (nu - r^2) / (nu + r^2)^2`.
+    fn psi_prime(&self, r: f64) -> f64 {
+        self.nu * (self.nu - r * r) / (self.nu + r * r).powi(2)
     }
 }
 
@@ -187,5 +219,35 @@ impl RobustLoss for Loss {
     }
     fn weight(&self, r: f64) -> f64 {
         dispatch!(self, weight, r)
+    }
+    fn psi_prime(&self, r: f64) -> f64 {
+        dispatch!(self, psi_prime, r)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn psi_prime_is_the_derivative_of_psi() {
+        let h = 1e-6;
+        for loss in [
+            Loss::Squared,
+            Loss::Huber(1.345),
+            Loss::Cauchy(2.385),
+            Loss::Tukey(4.685),
+            Loss::StudentT(5.0),
+        ] {
+            // Away from the kinks of Huber (1.345) and Tukey (4.685).
+            for r in [-6.0, -3.0, -1.0, -0.2, 0.0, 0.5, 1.2, 2.0, 4.0, 7.5] {
+                let numeric = (loss.psi(r + h) - loss.psi(r - h)) / (2.0 * h);
+                let exact = loss.psi_prime(r);
+                assert!(
+                    (numeric - exact).abs() < 1e-6,
+                    "{loss:?} at {r}: {exact} vs {numeric}"
+                );
+            }
+        }
     }
 }

@@ -14,7 +14,8 @@
 //! inverse depths (module `sparse`); level `l` uses `f / 2^l`, `c / 2^l`. Each level runs robust Levenberg-Marquardt (Huber or Student-t weights, MAD scale
 //! re-estimated every iteration, normal equations reduced in parallel), coarse to fine, from the
 //! prior pose, with `(a, b)` estimated only at the `brightness_levels` finest levels. Module
-//! `level` holds the residuals and Jacobian rows of one level.
+//! `level` holds the residuals and Jacobian rows of one level, module `covariance` the sandwich
+//! covariance of the result.
 
 use std::sync::Arc;
 
@@ -27,10 +28,12 @@ use crate::lm::{run_level, LevelProblem, LmSettings, SERIAL_MAX};
 use crate::plane::{Bilinear, Plane};
 use crate::rgbd::{pinhole_image, RgbdFrame, Undistorter};
 
+mod covariance;
 mod level;
 mod select;
 mod sparse;
 
+use covariance::sandwich_covariance;
 use level::{Se3Level, Se3State};
 use select::{level_intrinsics, select_level, RefLevel};
 pub use sparse::InverseDepthPoint;
@@ -131,8 +134,11 @@ pub struct Se3Result {
     pub sigma: f64,
     /// Valid residuals at full resolution.
     pub valid_pixels: usize,
-    /// Gauss-Newton covariance of the left pose increment `(rho, phi)`, metres and radians;
-    /// `None` (unknown) when the final normal equations are singular.
+    /// Covariance of the left pose increment `(rho, phi)`, metres and radians, marginal over
+    /// the brightness: the M-estimator's sandwich `B^-1 M B^-1` at full resolution (module
+    /// `covariance`), for independent residuals. The error is `T_est = exp(e) T_true`,
+    /// `e ~ N(0, covariance)`. `None` (unknown) when the final normal equations are singular or
+    /// ill-conditioned, or the robust Hessian `B` is not positive definite.
     pub covariance: Option<Matrix6<f64>>,
     /// Why the full-resolution level stopped.
     pub reason: Convergence,
@@ -270,7 +276,16 @@ impl Se3Reference {
                         (s + f64::from(r * r), n + usize::from(r.abs() <= limit))
                     });
                 let valid = out.valid.max(1) as f64;
-                let cov = out.system.covariance(cfg.max_condition);
+                // Only a well-conditioned problem has a covariance (the Gauss-Newton test).
+                let cov = out.system.covariance(cfg.max_condition).and_then(|_| {
+                    sandwich_covariance(
+                        res,
+                        &problem.jacobians,
+                        &cfg.loss,
+                        out.scale,
+                        &level_settings.fixed,
+                    )
+                });
                 let gain_ok = state.a >= 1.0 / cfg.max_gain && state.a <= cfg.max_gain;
                 if cfg.affine_brightness && !gain_ok {
                     return Err(DirectError::ImplausibleGain {
@@ -288,7 +303,7 @@ impl Se3Reference {
                     inlier_ratio: inliers as f64 / valid,
                     sigma: f64::from(out.scale),
                     valid_pixels: out.valid,
-                    covariance: cov.map(|c| c.fixed_view::<6, 6>(0, 0).into_owned()),
+                    covariance: cov,
                     reason: out.reason,
                 });
             }
