@@ -10,7 +10,7 @@
 //! follows by absolute orientation (SVD of the cross-covariance).
 
 use nalgebra::{
-    Isometry3, Matrix3, Matrix4, Point3, Rotation3, Translation3, UnitQuaternion, Vector3,
+    Isometry3, Matrix3, Matrix4, Point3, Rotation3, Schur, Translation3, UnitQuaternion, Vector3,
 };
 
 /// Product of two polynomials given by ascending coefficients.
@@ -43,8 +43,11 @@ fn poly_eval(c: &[f64], x: f64) -> (f64, f64) {
     (v, d)
 }
 
+/// Upper bound on the Schur decomposition's QR iterations for the 4x4 companion matrix.
+const MAX_QR_ITERATIONS: usize = 1000;
+
 /// Real roots of a quartic (ascending coefficients `c[0..5]`) from the companion matrix,
-/// polished by Newton steps.
+/// polished by Newton steps; none when the QR iteration does not converge.
 pub fn quartic_real_roots(c: &[f64; 5]) -> Vec<f64> {
     if c[4].abs() < 1e-14 * c.iter().fold(0.0f64, |m, v| m.max(v.abs())) {
         return Vec::new();
@@ -56,7 +59,12 @@ pub fn quartic_real_roots(c: &[f64; 5]) -> Vec<f64> {
     for k in 1..4 {
         comp[(k, k - 1)] = 1.0;
     }
-    comp.complex_eigenvalues()
+    // A bounded QR iteration (nalgebra's `complex_eigenvalues()` iterates without limit).
+    let Some(schur) = Schur::try_new(comp, f64::EPSILON, MAX_QR_ITERATIONS) else {
+        return Vec::new();
+    };
+    schur
+        .complex_eigenvalues()
         .iter()
         .filter(|z| z.im.abs() < 1e-6 * (1.0 + z.re.abs()))
         .map(|z| {

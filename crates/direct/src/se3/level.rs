@@ -69,10 +69,56 @@ pub(super) struct Se3Level<'a> {
     pub(super) size: (usize, usize),
     /// Grey levels of the current level, row-major.
     pub(super) image: &'a [f32],
+    /// Per reference point: whether it takes part at this level ([`Se3Level::new`]).
+    pub(super) active: Vec<bool>,
     pub(super) residuals: Vec<f32>,
     pub(super) jacobians: Vec<[f32; 8]>,
     /// The evaluation at the accepted state while a trial is evaluated.
     pub(super) saved: (Vec<f32>, Vec<[f32; 8]>),
+}
+
+impl<'a> Se3Level<'a> {
+    /// The level's problem on the points that `start` projects at least `margin` pixels
+    /// inside the sampled area (`1 <= u <= width - 2`, the same for `v`) and in front of the
+    /// camera. The set is fixed for the level, so that the mean cost the LM loop compares
+    /// between steps is over the same points: a step cannot lower it by pushing badly fitting
+    /// points out of the image.
+    pub(super) fn new(
+        reference: &'a RefLevel,
+        size: (usize, usize),
+        image: &'a [f32],
+        start: &Isometry3<f64>,
+        margin: f32,
+    ) -> Self {
+        let rot = start
+            .rotation
+            .to_rotation_matrix()
+            .into_inner()
+            .cast::<f32>();
+        let t = start.translation.vector.cast::<f32>();
+        let [fx, fy, cx, cy] = reference.k;
+        let (w, h) = (size.0 as f32, size.1 as f32);
+        let active = (0..reference.x.len())
+            .map(|i| {
+                let p = rot * Vector3::new(reference.x[i], reference.y[i], reference.z[i]) + t;
+                let (u, v) = (fx * p.x / p.z + cx, fy * p.y / p.z + cy);
+                p.z > 1e-3
+                    && u >= 1.0 + margin
+                    && v >= 1.0 + margin
+                    && u <= w - 2.0 - margin
+                    && v <= h - 2.0 - margin
+            })
+            .collect();
+        Self {
+            reference,
+            size,
+            image,
+            active,
+            residuals: Vec::new(),
+            jacobians: Vec::new(),
+            saved: (Vec::new(), Vec::new()),
+        }
+    }
 }
 
 impl LevelProblem<8> for Se3Level<'_> {
@@ -91,6 +137,7 @@ impl LevelProblem<8> for Se3Level<'_> {
         let [fx, fy, cx, cy] = r.k;
         let (w, h) = self.size;
         let image = self.image;
+        let active = &self.active;
         let n = r.x.len();
         self.residuals.resize(n, f32::NAN);
         self.jacobians.resize(n, [0.0; 8]);
@@ -101,12 +148,14 @@ impl LevelProblem<8> for Se3Level<'_> {
                 .iter()
                 .zip(&r.y[start..end])
                 .zip(&r.z[start..end])
-                .zip(&r.value[start..end]);
+                .zip(&r.value[start..end])
+                .zip(&active[start..end]);
             let mut valid = 0;
-            for ((o, j), (((&x, &y), &z), &reference)) in res.iter_mut().zip(jac).zip(points) {
+            for ((o, j), ((((&x, &y), &z), &reference), &on)) in res.iter_mut().zip(jac).zip(points)
+            {
                 let p = rot * Vector3::new(x, y, z) + t;
                 *o = f32::NAN;
-                if p.z <= 1e-3 {
+                if !on || p.z <= 1e-3 {
                     continue;
                 }
                 let iz = 1.0 / p.z;

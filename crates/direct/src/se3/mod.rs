@@ -42,6 +42,10 @@ pub use sparse::InverseDepthPoint;
 const MIN_LEVEL_SIDE: usize = 20;
 /// Fewest valid residuals for a level to be solved (a few per parameter).
 const MIN_VALID: usize = 64;
+/// A level's points are those its starting pose projects at least this far (pixels of the
+/// level) inside the current image; the set is then fixed for the level (see
+/// [`level::Se3Level::new`]; the 2D warps do the same).
+const LEVEL_MARGIN_PX: f32 = 2.0;
 
 /// Settings of [`align_se3`].
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -252,14 +256,13 @@ impl Se3Reference {
             } else {
                 &coarse[level - 1]
             };
-            let mut problem = Se3Level {
+            let mut problem = Se3Level::new(
                 reference,
-                size: img.size(),
-                image: img.data(),
-                residuals: Vec::new(),
-                jacobians: Vec::new(),
-                saved: (Vec::new(), Vec::new()),
-            };
+                img.size(),
+                img.data(),
+                &state.pose,
+                LEVEL_MARGIN_PX,
+            );
             let brightness = cfg.affine_brightness && level < cfg.brightness_levels;
             let mut level_settings = settings;
             level_settings.fixed[6..].fill(!brightness);

@@ -11,7 +11,12 @@
 
 #![allow(clippy::needless_range_loop)] // index loops mirror the matrix algebra
 
-use nalgebra::{Matrix3, SMatrix, Vector3};
+use nalgebra::{Matrix3, SMatrix, Schur, Vector3};
+
+/// Upper bound on the Schur decomposition's QR iterations for the 10x10 action matrix (a
+/// converging decomposition takes a few per eigenvalue); a sample that needs more gives no
+/// solution.
+const MAX_QR_ITERATIONS: usize = 1000;
 
 /// Number of monomials of degree <= 3 in three variables.
 const NMON: usize = 20;
@@ -305,7 +310,12 @@ pub fn essential_5pt(x1: &[Vector3<f64>; 5], x2: &[Vector3<f64>; 5], out: &mut V
     action[(7, 1)] = 1.0;
     action[(8, 2)] = 1.0;
     action[(9, 6)] = 1.0;
-    let eig = action.complex_eigenvalues();
+    // A bounded QR iteration: nalgebra's `complex_eigenvalues()` iterates without limit and
+    // never returned on one action matrix (a RANSAC sample of relative-pose scene 615734).
+    let Some(schur) = Schur::try_new(action, f64::EPSILON, MAX_QR_ITERATIONS) else {
+        return;
+    };
+    let eig = schur.complex_eigenvalues();
     for lambda in eig.iter() {
         if lambda.im.abs() > 1e-8 * (1.0 + lambda.re.abs()) {
             continue;
