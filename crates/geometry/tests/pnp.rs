@@ -127,6 +127,51 @@ fn covariance_grows_with_noise() {
     assert!(trace(1.0) > 2.0 * trace(0.3));
 }
 
+/// Mean NEES over its 3 degrees of freedom of the rotation and of the translation block of
+/// PnP's covariance over 200 scenes (80 points, 10% outliers, the TUM lens) at pixel noise
+/// `sigma`, with the inlier threshold at 4 sigma. The error is the left increment
+/// `delta = log(T_true T_est^-1) = (rho, phi)` of the covariance's convention.
+fn pnp_nees(sigma: f64) -> (f64, f64) {
+    const SEEDS: u64 = 200;
+    let cam = distorted_camera();
+    let cfg = PnpConfig {
+        ransac: RansacConfig {
+            threshold: 4.0 * sigma,
+            ..PnpConfig::default().ransac
+        },
+        ..Default::default()
+    };
+    let (mut rot, mut trans) = (0.0, 0.0);
+    for seed in 0..SEEDS {
+        let (t_cw, world, px, _) = pnp_scene(7000 + seed, 80, 0.1, sigma, &cam);
+        let fit = solve_pnp_ransac(&world, &px, &cam, None, &cfg).unwrap();
+        let cov = fit.covariance.expect("a refined pose has a covariance");
+        let delta = vofront_geometry::lie::se3_log(&(t_cw * fit.pose.inverse()));
+        let block = |k: usize| {
+            let e = delta.fixed_rows::<3>(k).into_owned();
+            let c = cov.fixed_view::<3, 3>(k, k).into_owned();
+            e.dot(&(c.try_inverse().expect("invertible block") * e))
+        };
+        trans += block(0);
+        rot += block(3);
+    }
+    (rot / (3.0 * SEEDS as f64), trans / (3.0 * SEEDS as f64))
+}
+
+#[test]
+fn covariance_is_calibrated_at_known_pixel_noise() {
+    for sigma in [0.5, 1.0, 2.0] {
+        let (rot, trans) = pnp_nees(sigma);
+        eprintln!("noise {sigma} px: mean NEES/dof rotation {rot:.3}, translation {trans:.3}");
+        for (name, m) in [("rotation", rot), ("translation", trans)] {
+            assert!(
+                (0.7..=1.5).contains(&m),
+                "noise {sigma} px: {name} NEES/dof {m}"
+            );
+        }
+    }
+}
+
 #[test]
 fn prior_is_used_when_it_is_the_best_hypothesis() {
     let cam = common::camera();

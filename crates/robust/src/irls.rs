@@ -11,8 +11,9 @@
 //!
 //! The mean cost (cost over the number of rows) is compared so that problems whose valid rows
 //! change with `x` (pixels leaving the image) are judged fairly. The covariance returned is the
-//! Gauss-Newton approximation `sigma^2 H^-1` with `sigma^2 = sum w_i r_i^2 / (n - N)` at the
-//! solution, `None` when `H` is singular.
+//! M-estimate's sandwich covariance at the solution ([`crate::sandwich`]; for least squares
+//! White's estimator, for Huber about 20% larger than the fixed-weight `sigma^2 (J^T W J)^-1`,
+//! which is too small), `None` when `H` is singular or badly conditioned.
 
 use nalgebra::{SMatrix, SVector};
 use serde::Serialize;
@@ -20,6 +21,7 @@ use serde::Serialize;
 use crate::lm::{levenberg_marquardt, Convergence, LmConfig, LmError, LmProblem};
 use crate::loss::{Loss, RobustLoss};
 use crate::normal::NormalEquations;
+use crate::sandwich::sandwich_covariance;
 use crate::scale::mad_sigma_about_zero;
 
 /// Residual rows and their Jacobians, stored as two parallel arrays.
@@ -125,8 +127,8 @@ pub struct IrlsResult<S, const N: usize> {
     pub scale: f64,
     /// `H = J^T W J` at the final state.
     pub hessian: SMatrix<f64, N, N>,
-    /// `sigma^2 H^-1` with `sigma^2 = sum w r^2 / (n - N)`; `None` (unknown) when `H` is
-    /// singular or worse conditioned than `max_condition`.
+    /// Sandwich covariance of the increment ([`crate::sandwich_covariance`]); `None` (unknown)
+    /// when `H` is singular or worse conditioned than `max_condition`.
     pub covariance: Option<SMatrix<f64, N, N>>,
 }
 
@@ -231,6 +233,15 @@ pub fn irls<P: Problem<N>, const N: usize>(
     let (loss, scale) = (cfg.loss, rows_problem.scale);
     let residuals = std::mem::take(&mut rows_problem.rows.residuals);
     let weights = residuals.iter().map(|r| loss.weight(r / scale)).collect();
+    let covariance = out.system.covariance(lm.max_condition).and_then(|_| {
+        let rows = rows_problem
+            .rows
+            .jacobians
+            .iter()
+            .copied()
+            .zip(residuals.iter().copied());
+        sandwich_covariance(rows, &loss, scale, &[false; N])
+    });
     Ok(IrlsResult {
         state: out.state,
         weights,
@@ -240,6 +251,6 @@ pub fn irls<P: Problem<N>, const N: usize>(
         reason: out.reason,
         scale,
         hessian: out.system.hessian(),
-        covariance: out.system.covariance(lm.max_condition),
+        covariance,
     })
 }

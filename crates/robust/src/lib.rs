@@ -47,6 +47,7 @@ pub mod lm;
 pub mod loss;
 pub mod normal;
 pub mod quality;
+pub mod sandwich;
 pub mod scale;
 pub mod solve;
 
@@ -57,5 +58,6 @@ pub use lm::{
 pub use loss::{Cauchy, Huber, Loss, RobustLoss, Squared, StudentT, Tukey};
 pub use normal::NormalEquations;
 pub use quality::{Quality, QualityConfig, Reason, Support, Uncertainty, Verdict};
+pub use sandwich::sandwich_covariance;
 pub use scale::{mad_sigma, mad_sigma_about_zero, median_in_place};
 pub use solve::{scaled_condition, solve_damped, Damping, SolveError};

@@ -200,8 +200,9 @@ fn irls_reports_degenerate_problems_and_too_few_rows() {
 }
 
 #[test]
-fn irls_covariance_matches_the_least_squares_formula() {
-    // For plain least squares with a fixed sigma the covariance is sigma_hat^2 (J^T J)^-1.
+fn irls_covariance_is_whites_estimator_for_least_squares() {
+    // For plain least squares the sandwich covariance is White's heteroscedasticity-consistent
+    // estimator n / (n - 2) (J^T J)^-1 (sum r_i^2 J_i J_i^T) (J^T J)^-1.
     let points = line_with_outliers(1.0, 0.0, 7)
         .into_iter()
         .enumerate()
@@ -215,14 +216,17 @@ fn irls_covariance_matches_the_least_squares_formula() {
     };
     let fit = irls(&mut Line(points.clone()), Vector2::zeros(), &cfg).unwrap();
     let covariance = fit.covariance.expect("a well-posed line fit");
+    let row = |x: f64| Vector2::new(x, 1.0);
     let jtj = points.iter().fold(Matrix2::zeros(), |acc, &(x, _)| {
-        acc + Vector2::new(x, 1.0) * Vector2::new(x, 1.0).transpose()
+        acc + row(x) * row(x).transpose()
     });
-    let rss: f64 = points
-        .iter()
-        .map(|&(x, y)| (fit.state[0] * x + fit.state[1] - y).powi(2))
-        .sum();
-    let expected = jtj.try_inverse().unwrap() * (rss / (points.len() as f64 - 2.0));
+    let meat = points.iter().fold(Matrix2::zeros(), |acc, &(x, y)| {
+        let r = fit.state[0] * x + fit.state[1] - y;
+        acc + row(x) * row(x).transpose() * (r * r)
+    });
+    let n = points.len() as f64;
+    let bread = jtj.try_inverse().unwrap();
+    let expected = bread * meat * bread * (n / (n - 2.0));
     assert!((covariance - expected).abs().max() < 1e-9 * expected.abs().max());
     assert!(fit.costs.windows(2).all(|c| c[1] <= c[0]));
 }

@@ -21,19 +21,17 @@ use std::sync::Arc;
 
 use nalgebra::{Isometry3, Matrix6, SVector, Vector3};
 use rayon::prelude::*;
-use vofront_robust::{Convergence, Loss};
+use vofront_robust::{sandwich_covariance, Convergence, Loss};
 
 use crate::error::DirectError;
 use crate::lm::{run_level, LevelProblem, LmSettings, SERIAL_MAX};
 use crate::plane::{Bilinear, Plane};
 use crate::rgbd::{pinhole_image, RgbdFrame, Undistorter};
 
-mod covariance;
 mod level;
 mod select;
 mod sparse;
 
-use covariance::sandwich_covariance;
 use level::{Se3Level, Se3State};
 use select::{level_intrinsics, select_level, RefLevel};
 pub use sparse::InverseDepthPoint;
@@ -280,14 +278,21 @@ impl Se3Reference {
                     });
                 let valid = out.valid.max(1) as f64;
                 // Only a well-conditioned problem has a covariance (the Gauss-Newton test).
+                // The sandwich covariance of the M-estimate (see `vofront_robust::sandwich`),
+                // marginal over the brightness.
+                let rows = res
+                    .iter()
+                    .zip(&problem.jacobians)
+                    .filter(|(r, _)| !r.is_nan())
+                    .map(|(&r, j)| (SVector::<f64, 8>::from(j.map(f64::from)), f64::from(r)));
                 let cov = out.system.covariance(cfg.max_condition).and_then(|_| {
                     sandwich_covariance(
-                        res,
-                        &problem.jacobians,
+                        rows,
                         &cfg.loss,
-                        out.scale,
+                        f64::from(out.scale),
                         &level_settings.fixed,
                     )
+                    .map(|c| c.fixed_view::<6, 6>(0, 0).into_owned())
                 });
                 let gain_ok = state.a >= 1.0 / cfg.max_gain && state.a <= cfg.max_gain;
                 if cfg.affine_brightness && !gain_ok {

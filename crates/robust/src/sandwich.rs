@@ -1,7 +1,7 @@
-//! Covariance of the SE(3) estimate: the sandwich (Huber-White) covariance of an M-estimate.
+//! The sandwich (Huber-White) covariance of an M-estimate, shared by [`crate::irls()`] and the
+//! direct SE(3) aligner.
 //!
-//! The estimate minimises `sum_i s^2 rho(r_i / s)` over the parameters `x` (pose increment and
-//! brightness), so it solves the score equation `sum_i s psi(u_i) J_i^T = 0`, `u_i = r_i / s`.
+//! The estimate minimises `sum_i s^2 rho(r_i / s)` over the parameters `x` , so it solves the score equation `sum_i s psi(u_i) J_i^T = 0`, `u_i = r_i / s`.
 //! Expanding the score about the true parameters, whose derivative is
 //! `B = sum_i psi'(u_i) J_i^T J_i` (the Hessian of the robust cost in the Gauss-Newton
 //! approximation), the error is `delta = -B^-1 sum_i s psi(u_i) J_i^T` to first order, and with
@@ -16,32 +16,29 @@
 //! Huber at 1.345 sigmas on Gaussian residuals its variance factor
 //! `E[u psi(u)] / E[w(u)] = 0.86` against the correct `E[psi^2] / E[psi']^2 = 1.05`.
 
-use nalgebra::{Matrix6, SVector};
-use vofront_robust::{Loss, NormalEquations, RobustLoss};
+use nalgebra::{SMatrix, SVector};
 
-/// Sandwich covariance of the left pose increment `(rho, phi)` (metres, radians), marginal
-/// over the brightness, from the residuals `residuals` (NaN where invalid) and Jacobian rows
-/// `jacobians` at the estimate, the robust `loss` at scale `scale`; parameters in `fixed` carry
-/// no uncertainty. `None` when `B` is not positive definite (a redescending loss with many
-/// residuals on its falling part) or there are no more residuals than free parameters.
-pub(super) fn sandwich_covariance(
-    residuals: &[f32],
-    jacobians: &[[f32; 8]],
+use crate::loss::{Loss, RobustLoss};
+use crate::normal::NormalEquations;
+
+/// Sandwich covariance `n / (n - p) B^-1 M B^-1` of the parameters from the residual rows
+/// `(J_i, r_i)` at the estimate, the robust `loss` at scale `scale` (the residuals' units);
+/// parameters in `fixed` carry no uncertainty (zero rows and columns). `None` when `B` is not
+/// positive definite (a redescending loss with many residuals on its falling part) or there
+/// are no more rows than free parameters.
+pub fn sandwich_covariance<const N: usize>(
+    rows: impl IntoIterator<Item = (SVector<f64, N>, f64)>,
     loss: &Loss,
-    scale: f32,
-    fixed: &[bool; 8],
-) -> Option<Matrix6<f64>> {
-    let s = f64::from(scale);
-    let mask = SVector::<f64, 8>::from(fixed.map(|f| if f { 0.0 } else { 1.0 }));
-    let (mut bread, mut meat) = (NormalEquations::<8>::new(), NormalEquations::<8>::new());
-    for (&r, j) in residuals.iter().zip(jacobians) {
-        if r.is_nan() {
-            continue;
-        }
-        let u = f64::from(r) / s;
-        let j = SVector::<f64, 8>::from(j.map(f64::from)).component_mul(&mask);
+    scale: f64,
+    fixed: &[bool; N],
+) -> Option<SMatrix<f64, N, N>> {
+    let mask = SVector::<f64, N>::from_fn(|i, _| if fixed[i] { 0.0 } else { 1.0 });
+    let (mut bread, mut meat) = (NormalEquations::<N>::new(), NormalEquations::<N>::new());
+    for (j, r) in rows {
+        let u = r / scale;
+        let j = j.component_mul(&mask);
         bread.add(&j, 0.0, loss.psi_prime(u));
-        meat.add(&j, 0.0, (s * loss.psi(u)).powi(2));
+        meat.add(&j, 0.0, (scale * loss.psi(u)).powi(2));
     }
     let free = fixed.iter().filter(|f| !**f).count();
     let n = bread.count;
@@ -52,8 +49,7 @@ pub(super) fn sandwich_covariance(
         bread.fix(i);
     }
     let inverse = bread.hessian().cholesky()?.inverse();
-    let cov = inverse * meat.hessian() * inverse * (n as f64 / (n - free) as f64);
-    Some(cov.fixed_view::<6, 6>(0, 0).into_owned())
+    Some(inverse * meat.hessian() * inverse * (n as f64 / (n - free) as f64))
 }
 
 #[cfg(test)]
@@ -86,8 +82,15 @@ mod tests {
         // Five free parameters, the last three held.
         let mut fixed = [false; 8];
         fixed[5..].fill(true);
-        let cov = sandwich_covariance(&residuals, &rows, &Loss::Squared, 1.0, &fixed)
-            .expect("well-posed");
+        let cov = sandwich_covariance(
+            rows.iter()
+                .zip(&residuals)
+                .map(|(j, &r)| (SVector::<f64, 8>::from(j.map(f64::from)), f64::from(r))),
+            &Loss::Squared,
+            1.0,
+            &fixed,
+        )
+        .expect("well-posed");
         let j = nalgebra::DMatrix::<f64>::from_fn(n, 5, |r, c| f64::from(rows[r][c]));
         let jtj_inv = (j.transpose() * &j).try_inverse().expect("invertible");
         let mut meat = nalgebra::DMatrix::<f64>::zeros(5, 5);
