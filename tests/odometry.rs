@@ -5,7 +5,7 @@ use std::sync::OnceLock;
 
 use vofront::dataset::{Dataset, DatasetError};
 use vofront::eval::{ate, Alignment, EvalConfig};
-use vofront::fixtures::scene::{default_camera, room_trajectory, Scene};
+use vofront::fixtures::scene::{default_camera, rescaled_camera, room_trajectory, Scene};
 use vofront::fixtures::tum::write_tum_sequence;
 use vofront::odometry::direct::{DirectTracker, DirectTrackerConfig};
 use vofront::odometry::feature_rgbd::{FeatureRgbdConfig, FeatureRgbdTracker};
@@ -44,13 +44,7 @@ fn sequence(name: &str, width: u32, height: u32) -> (PathBuf, Dataset) {
 
 /// The default camera for an image `width` pixels wide (same field of view).
 fn scaled_camera(width: u32) -> vofront::geometry::Camera {
-    let mut camera = default_camera();
-    let scale = width as f64 / 640.0;
-    camera.pinhole.fx *= scale;
-    camera.pinhole.fy *= scale;
-    camera.pinhole.cx = (camera.pinhole.cx + 0.5) * scale - 0.5;
-    camera.pinhole.cy = (camera.pinhole.cy + 0.5) * scale - 0.5;
-    camera
+    rescaled_camera(&default_camera(), width as f64 / 640.0)
 }
 
 /// The 640x480 room sequence, rendered once and shared by the tests that only read it.

@@ -1,14 +1,16 @@
 //! SE(3) direct alignment on rendered RGB-D views of the fixtures' box room.
 
 use nalgebra::{Isometry3, Vector2};
-use vofront_core::camera::{Camera, Pinhole};
+use vofront_core::camera::Camera;
 use vofront_core::lie::rotation_angle_deg;
 use vofront_direct::{
     align_se3, photometric_residual_map, DirectError, InverseDepthPoint, Plane, RgbdFrame,
     Se3Config, Se3Reference,
 };
 use vofront_fixtures::image2d::{add_gaussian_noise, brightness, occlude_patches};
-use vofront_fixtures::scene::{default_camera, distorted_camera, pose_wc, Rendered, Scene};
+use vofront_fixtures::scene::{
+    default_camera, distorted_camera, pose_wc, rescaled_camera, Rendered, Scene,
+};
 use vofront_robust::Loss;
 
 /// Rotation error allowed on noiseless renders, degrees (the brief's requirement).
@@ -20,21 +22,6 @@ const TRANSLATION_TOLERANCE_PER_METRE: f64 = 1e-3;
 const L2_PENALTY: f64 = 1.5;
 const W: u32 = 320;
 const H: u32 = 240;
-
-/// A camera with the default field of view at half resolution (faster renders).
-fn half_camera(full: Camera) -> Camera {
-    let p = full.pinhole;
-    Camera::new(
-        Pinhole::new(
-            p.fx / 2.0,
-            p.fy / 2.0,
-            (p.cx - 0.5) / 2.0,
-            (p.cy - 0.5) / 2.0,
-        )
-        .unwrap(),
-        full.distortion,
-    )
-}
 
 struct Pair {
     camera: Camera,
@@ -105,7 +92,7 @@ fn assert_accurate(est: &Isometry3<f64>, p: &Pair, what: &str) {
 
 #[test]
 fn noiseless_motion_is_recovered_with_covariance_and_full_inliers() {
-    let p = pair(half_camera(default_camera()));
+    let p = pair(rescaled_camera(&default_camera(), 0.5));
     let fit = align_se3(
         &frame(&p),
         &Plane::from_gray_f32(&p.second.image),
@@ -167,7 +154,7 @@ fn noiseless_motion_is_recovered_with_covariance_and_full_inliers() {
 /// convergence lands (within that fraction of a standard deviation), in fewer iterations.
 #[test]
 fn stopping_below_the_noise_matches_full_convergence() {
-    let p = pair(half_camera(default_camera()));
+    let p = pair(rescaled_camera(&default_camera(), 0.5));
     let current = Plane::from_gray_f32(&add_gaussian_noise(&p.second.image, 3.0, 11));
     let run = |min_step_sigmas, min_step| {
         let cfg = Se3Config {
@@ -201,7 +188,7 @@ fn stopping_below_the_noise_matches_full_convergence() {
 
 #[test]
 fn distorted_camera_is_handled_by_undistortion() {
-    let p = pair(half_camera(distorted_camera()));
+    let p = pair(rescaled_camera(&distorted_camera(), 0.5));
     let fit = align_se3(
         &frame(&p),
         &Plane::from_gray_f32(&p.second.image),
@@ -214,7 +201,7 @@ fn distorted_camera_is_handled_by_undistortion() {
 
 #[test]
 fn brightness_change_is_estimated() {
-    let p = pair(half_camera(default_camera()));
+    let p = pair(rescaled_camera(&default_camera(), 0.5));
     let current = Plane::from_gray_f32(&brightness(&p.second.image, 1.3, -20.0));
     let fit = align_se3(
         &frame(&p),
@@ -229,7 +216,7 @@ fn brightness_change_is_estimated() {
 
 #[test]
 fn occluding_patches_are_rejected_by_the_robust_loss() {
-    let p = pair(half_camera(default_camera()));
+    let p = pair(rescaled_camera(&default_camera(), 0.5));
     let (occluded, _) = occlude_patches(&p.second.image, 0.2, 3);
     let current = Plane::from_gray_f32(&occluded);
     let run = |loss| {
@@ -257,7 +244,7 @@ fn occluding_patches_are_rejected_by_the_robust_loss() {
 
 #[test]
 fn missing_depth_pixels_are_skipped() {
-    let p = pair(half_camera(default_camera()));
+    let p = pair(rescaled_camera(&default_camera(), 0.5));
     let mut depth = Plane::from_gray_f32(&p.first.depth);
     for (i, z) in depth.data_mut().iter_mut().enumerate() {
         if i % 7 == 0 {
@@ -279,7 +266,7 @@ fn missing_depth_pixels_are_skipped() {
 
 #[test]
 fn bad_inputs_are_typed_errors() {
-    let cam = half_camera(default_camera());
+    let cam = rescaled_camera(&default_camera(), 0.5);
     let img = Plane::filled(64, 48, 100.0);
     let depth = Plane::filled(64, 48, 2.0);
     assert!(matches!(
@@ -322,7 +309,7 @@ fn bad_inputs_are_typed_errors() {
 /// level drives the gain to 0.
 #[test]
 fn large_motions_converge_or_fail_loudly() {
-    let camera = half_camera(default_camera());
+    let camera = rescaled_camera(&default_camera(), 0.5);
     let room = Scene::box_room(5);
     let t_w1 = pose_wc([0.0, 0.0, 0.0], 0.0, 0.0, 0.0);
     let first = room.render(&camera, W, H, &t_w1);
@@ -376,7 +363,7 @@ fn large_motions_converge_or_fail_loudly() {
 /// skipped, and no usable point at all is an error.
 #[test]
 fn sparse_inverse_depth_reference_is_accurate() {
-    let p = pair(half_camera(default_camera()));
+    let p = pair(rescaled_camera(&default_camera(), 0.5));
     let image = Plane::from_gray_f32(&p.first.image);
     let depth = Plane::from_gray_f32(&p.first.depth);
     let g = image.gradients();

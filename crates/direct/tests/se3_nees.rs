@@ -15,11 +15,11 @@
 //! change, about 1%), which leaves about 1 grey level of model error.
 
 use nalgebra::{Isometry3, Matrix3, Matrix6, Vector3};
-use vofront_core::camera::{Camera, Pinhole};
+use vofront_core::camera::Camera;
 use vofront_core::lie::se3_log;
 use vofront_direct::{align_se3, Plane, RgbdFrame, Se3Config};
 use vofront_fixtures::image2d::{add_gaussian_noise, gaussian_blur, GrayF32};
-use vofront_fixtures::scene::{default_camera, pose_wc, Scene};
+use vofront_fixtures::scene::{default_camera, pose_wc, rescaled_camera, Scene};
 
 /// Noise draws per noise level.
 const SEEDS: u64 = 200;
@@ -41,21 +41,6 @@ const MOTIONS: [([f64; 3], f64, f64, f64); 4] = [
     ([-0.02, -0.03, 0.03], -0.01, -0.02, 0.02),
 ];
 
-/// A camera with the default field of view at half resolution (faster renders).
-fn half_camera(full: Camera) -> Camera {
-    let p = full.pinhole;
-    Camera::new(
-        Pinhole::new(
-            p.fx / 2.0,
-            p.fy / 2.0,
-            (p.cx - 0.5) / 2.0,
-            (p.cy - 0.5) / 2.0,
-        )
-        .unwrap(),
-        full.distortion,
-    )
-}
-
 /// The reference render and depth, and each current image with its `T_cur_ref`, each
 /// rendered once and band-limited.
 struct Views {
@@ -66,7 +51,7 @@ struct Views {
 }
 
 fn views() -> Views {
-    let camera = half_camera(default_camera());
+    let camera = rescaled_camera(&default_camera(), 0.5);
     let room = Scene::box_room(5);
     let t_w_ref = pose_wc([0.0, 0.0, 0.0], 0.0, 0.0, 0.0);
     let reference = room.render(&camera, W, H, &t_w_ref);
