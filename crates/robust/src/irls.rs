@@ -9,8 +9,10 @@
 //! from the accepted residuals when [`ScaleMode::Mad`] is used. The accept/reject rule, the
 //! damping and the stop reasons are those of [`crate::lm`].
 //!
-//! The mean cost (cost over the number of rows) is compared so that problems whose valid rows
-//! change with `x` (pixels leaving the image) are judged fairly. The covariance returned is the
+//! The mean cost (cost over the number of rows) is compared. A mean over rows that come and go
+//! with `x` (pixels leaving the image) is not one cost function: a step can lower it by dropping
+//! badly fitting rows, so such problems keep their set of rows fixed during a solve (as the
+//! direct aligners do per pyramid level). The covariance returned is the
 //! M-estimate's sandwich covariance at the solution ([`crate::sandwich`]; for least squares
 //! White's estimator, for Huber about 20% larger than the fixed-weight `sigma^2 (J^T W J)^-1`,
 //! which is too small), `None` when `H` is singular or badly conditioned.

@@ -153,9 +153,12 @@ impl LevelProblem<8> for Se3Level<'_> {
             let mut valid = 0;
             for ((o, j), ((((&x, &y), &z), &reference), &on)) in res.iter_mut().zip(jac).zip(points)
             {
-                let p = rot * Vector3::new(x, y, z) + t;
                 *o = f32::NAN;
-                if !on || p.z <= 1e-3 {
+                if !on {
+                    continue;
+                }
+                let p = rot * Vector3::new(x, y, z) + t;
+                if p.z <= 1e-3 {
                     continue;
                 }
                 let iz = 1.0 / p.z;

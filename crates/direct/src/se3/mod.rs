@@ -14,8 +14,8 @@
 //! inverse depths (module `sparse`); level `l` uses `f / 2^l`, `c / 2^l`. Each level runs robust Levenberg-Marquardt (Huber or Student-t weights, MAD scale
 //! re-estimated every iteration, normal equations reduced in parallel), coarse to fine, from the
 //! prior pose, with `(a, b)` estimated only at the `brightness_levels` finest levels. Module
-//! `level` holds the residuals and Jacobian rows of one level, module `covariance` the sandwich
-//! covariance of the result.
+//! `level` holds the residuals and Jacobian rows of one level; the result's covariance is the
+//! robust crate's sandwich covariance.
 
 use std::sync::Arc;
 
@@ -277,9 +277,9 @@ impl Se3Reference {
                         (s + f64::from(r * r), n + usize::from(r.abs() <= limit))
                     });
                 let valid = out.valid.max(1) as f64;
-                // Only a well-conditioned problem has a covariance (the Gauss-Newton test).
-                // The sandwich covariance of the M-estimate (see `vofront_robust::sandwich`),
-                // marginal over the brightness.
+                // The M-estimate's sandwich covariance (`vofront_robust::sandwich`), marginal
+                // over the brightness, for a well-conditioned problem only (the Gauss-Newton
+                // test).
                 let rows = res
                     .iter()
                     .zip(&problem.jacobians)
