@@ -96,15 +96,14 @@ fn assert_in_band(noise: f64, what: &str, (rot, dir): (f64, f64)) {
 
 #[test]
 fn covariance_is_calibrated_at_known_pixel_noise() {
-    for noise in [0.5, 1.0] {
+    // At 2 px a few low-parallax seeds (51 and 66 of these) end 8-15 local sigmas from the
+    // truth, where the Sampson cost rises by only 3-5: the mean holds only because the
+    // covariance is widened where the cost is flatter than its quadratic model.
+    for noise in [0.5, 1.0, 2.0] {
         let (plain, trimmed) = calibration(noise);
         assert_in_band(noise, "mean", plain);
         assert_in_band(noise, "trimmed mean", trimmed);
     }
-    // At 2 px the refinement lands a few seeds (one in 200) in a wrong basin, tens of sigmas
-    // off, which no local covariance describes; the bulk is checked without the largest 1%.
-    let (_, trimmed) = calibration(2.0);
-    assert_in_band(2.0, "trimmed mean", trimmed);
 }
 
 #[test]

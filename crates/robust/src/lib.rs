@@ -14,6 +14,8 @@
 //!   system ([`NormalEquations`] or a Schur complement), with one accept/reject rule, one
 //!   damping update and one set of stop reasons;
 //! - [`quality`]: the quality record (verdict, reasons, support, covariance) of every estimate;
+//! - [`secant`]: a Gauss-Newton covariance widened where the cost is flatter than its
+//!   quadratic model;
 //! - [`irls`](mod@irls): iteratively reweighted least squares on residual rows through that driver,
 //!   with a covariance output (`None` when unknown).
 //!
@@ -49,6 +51,7 @@ pub mod normal;
 pub mod quality;
 pub mod sandwich;
 pub mod scale;
+pub mod secant;
 pub mod solve;
 
 pub use irls::{irls, IrlsConfig, IrlsError, IrlsResult, Problem, Rows, ScaleMode};
@@ -60,4 +63,5 @@ pub use normal::NormalEquations;
 pub use quality::{Quality, QualityConfig, Reason, Support, Uncertainty, Verdict};
 pub use sandwich::sandwich_covariance;
 pub use scale::{mad_sigma, mad_sigma_about_zero, median_in_place};
+pub use secant::secant_covariance;
 pub use solve::{scaled_condition, solve_damped, Damping, SolveError};

@@ -27,7 +27,8 @@
 //! 6. the quality record ([`RelativePose::quality`]): fewer than five final inliers is
 //!    [`GeometryError::NoModel`]; otherwise support, the a-contrario chance test and the
 //!    covariance `sigma^2 (J^T J)^-1` of `(R, t)` from the Sampson Jacobian on the refit's
-//!    gated correspondences decide `ok`, `unreliable` or `failed`.
+//!    gated correspondences (widened along any axis where the cost rises less than its
+//!    quadratic model, [`sampson_covariance`]) decide `ok`, `unreliable` or `failed`.
 //!
 //! Module layers (each imports only those above it): `correspondences`, `types` and
 //! [`crate::residual`] (the one place each error is written); `refine` (the Sampson
@@ -48,8 +49,8 @@ mod types;
 pub use correspondences::Correspondences;
 pub use estimators::{EssentialEstimator, HomographyEstimator, HomographyModel};
 pub use refine::{
-    refine_maximum_likelihood, refine_relative_pose, refine_relative_pose_fit, sampson_information,
-    tangent_basis, MlRefineConfig, RelRefinement, RelState,
+    refine_maximum_likelihood, refine_relative_pose, refine_relative_pose_fit, sampson_covariance,
+    sampson_information, tangent_basis, MlRefineConfig, RelRefinement, RelState,
 };
 pub use types::{Model, RansacIterations, RelativePose, RelativePoseConfig};
 
@@ -113,7 +114,7 @@ pub fn estimate_relative_pose(
 
 /// The pose of a general (translating) motion from the chosen refined state: the final
 /// inliers (Sampson distance under the threshold) and their points from the chirality test,
-/// the flags, and the quality record with the covariance from the Sampson information on the
+/// the flags, and the quality record with the covariance ([`sampson_covariance`]) on the
 /// maximum-likelihood refit's gated correspondences.
 fn general_pose(
     tv: &TwoView,
@@ -153,7 +154,8 @@ fn general_pose(
         hypotheses: sel.hypotheses(),
         sample: MIN_CORRESPONDENCES,
         sigma_px: chosen.sigma_px,
-        information: Some(sampson_information(data, &gated, tv.focal, &state)),
+        translation: true,
+        covariance: sampson_covariance(data, &gated, tv.focal, &state, chosen.sigma_px),
         iterations: sel.iterations.total(),
     };
     let low_parallax = final_rec.median_parallax_deg < tv.cfg.min_parallax_deg;

@@ -1,5 +1,6 @@
 //! The quality record of a relative pose: support, the a-contrario chance test and the
-//! covariance of `(R, t)` from the Sampson refinement's Hessian.
+//! covariance of `(R, t)` from the Sampson refinement's Hessian (widened where the cost is
+//! flatter than its quadratic model, `super::refine::sampson_covariance`).
 //!
 //! Chance test: `p0`, the probability that a random correspondence falls inside the final
 //! model's inlier region, is measured by applying the model's own inlier test to the data with
@@ -7,7 +8,7 @@
 //! about the motion but keep the image distribution of the features). The consensus is then
 //! scored by [`log10_nfa`] with the number of hypotheses RANSAC tried.
 
-use nalgebra::{Matrix3, Matrix5, SMatrix, Vector3};
+use nalgebra::{Matrix3, Matrix5, Vector3};
 use vofront_robust::quality::{block_rows, laplace_rate, log10_nfa, repairing_shifts, rms_of};
 use vofront_robust::{Quality, QualityConfig, Reason, Support, Uncertainty};
 
@@ -77,16 +78,19 @@ pub(super) struct Evidence {
     pub sample: usize,
     /// Noise scale of the Sampson distance, pixels.
     pub sigma_px: f64,
-    /// Sampson information `J^T J` at the final pose, when a translation was estimated.
-    pub information: Option<Matrix5<f64>>,
+    /// A translation was estimated (its covariance is then expected).
+    pub translation: bool,
+    /// Covariance of `(phi, a, b)` at the final pose (`super::refine::sampson_covariance`);
+    /// `None` when no translation was estimated or its information is singular.
+    pub covariance: Option<Matrix5<f64>>,
     /// RANSAC iterations (essential + homography).
     pub iterations: usize,
 }
 
 /// The quality record of a relative pose with the estimator's own `flags` (parallax, pure
-/// rotation, ambiguity). Covariance `sigma^2 (J^T J)^-1` over `(phi, a, b)`: rotation block
-/// `phi` (rad^2) and the translation direction's tangent block `(a, b)` (rad^2); a singular
-/// information matrix adds [`Reason::Degenerate`].
+/// rotation, ambiguity). Covariance over `(phi, a, b)` ([`Evidence::covariance`]): rotation
+/// block `phi` (rad^2) and the translation direction's tangent block `(a, b)` (rad^2); an
+/// estimated translation without one (singular information) adds [`Reason::Degenerate`].
 pub(super) fn judge(ev: &Evidence, flags: &[Reason], cfg: &QualityConfig) -> Quality {
     let log10 = log10_nfa(ev.tested, ev.inliers, ev.sample, ev.p0, ev.hypotheses);
     let support = Support {
@@ -94,15 +98,10 @@ pub(super) fn judge(ev: &Evidence, flags: &[Reason], cfg: &QualityConfig) -> Qua
         ..Support::new(ev.inliers, ev.candidates)
     };
     let mut flags = flags.to_vec();
-    let covariance: Option<SMatrix<f64, 5, 5>> = ev.information.and_then(|h| {
-        h.try_inverse()
-            .map(|inv| inv * (ev.sigma_px * ev.sigma_px))
-            .filter(|c| c.iter().all(|v| v.is_finite()) && (0..5).all(|i| c[(i, i)] >= 0.0))
-    });
-    if ev.information.is_some() && covariance.is_none() {
+    if ev.translation && ev.covariance.is_none() {
         flags.push(Reason::Degenerate);
     }
-    let uncertainty = covariance.map_or_else(Uncertainty::default, |c| {
+    let uncertainty = ev.covariance.map_or_else(Uncertainty::default, |c| {
         let rotation = block_rows(|r, k| c[(r, k)], 0, 3);
         let direction = block_rows(|r, k| c[(r, k)], 3, 2);
         Uncertainty {

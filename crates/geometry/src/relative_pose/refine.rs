@@ -128,6 +128,42 @@ pub fn sampson_information(
     normal.hessian()
 }
 
+/// Covariance of `delta = (phi, a, b)` (radians and tangent coordinates) of the estimate
+/// `state` from the Sampson distances (pixels) of `indices` at noise scale `sigma_px`:
+/// `sigma_px^2 (J^T J)^-1` ([`sampson_information`]) widened along each principal axis where
+/// the least-squares Sampson cost `sum_i r_i^2 / sigma_px^2` rises less than its quadratic
+/// model ([`vofront_robust::secant_covariance`]; at low parallax the residuals of points near
+/// the epipole are far from linear in the translation direction). `None` when `J^T J` is
+/// singular.
+pub fn sampson_covariance(
+    data: &Correspondences,
+    indices: &[usize],
+    focal: f64,
+    state: &RelState,
+    sigma_px: f64,
+) -> Option<Matrix5<f64>> {
+    let local = sampson_information(data, indices, focal, state)
+        .try_inverse()
+        .map(|inv| inv * (sigma_px * sigma_px))
+        .filter(|c| c.iter().all(|v| v.is_finite()) && (0..5).all(|i| c[(i, i)] >= 0.0))?;
+    let mut problem = SampsonProblem {
+        data,
+        indices,
+        focal,
+    };
+    let mut rows = Rows::default();
+    let mut cost = |problem: &mut SampsonProblem, s: &RelState| {
+        rows.clear();
+        problem.evaluate(s, &mut rows);
+        rows.residuals.iter().map(|r| r * r).sum::<f64>() / (sigma_px * sigma_px)
+    };
+    let at_estimate = cost(&mut problem, state);
+    Some(vofront_robust::secant_covariance(&local, |delta| {
+        let moved = problem.retract(state, delta);
+        cost(&mut problem, &moved) - at_estimate
+    }))
+}
+
 /// Refines `(R, t)` on the correspondences `indices` with `loss` on the Sampson distance in
 /// pixels divided by `sigma_px`, keeping the final Hessian and covariance; `None` when the
 /// solve fails (too few correspondences, degenerate normal equations).

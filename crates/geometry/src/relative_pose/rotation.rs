@@ -78,7 +78,8 @@ pub(super) fn rotation_only_pose(
         hypotheses: sel.hypotheses(),
         sample: ROTATION_SAMPLE,
         sigma_px: vofront_robust::mad_sigma_about_zero(&residuals).unwrap_or(tv.sigma_px),
-        information: None,
+        translation: false,
+        covariance: None,
         iterations: sel.iterations.total(),
     };
     let flags = [Reason::PureRotation, Reason::LowParallax];
