@@ -87,9 +87,10 @@ fn perturbed_window_is_recovered_to_the_noise_level() {
     // the fit absorbs ~1550 parameters over ~8000 coordinates (factor sqrt(0.8) = 0.9).
     let ratio = report.rmse_px / (NOISE_PX * 2f64.sqrt());
     assert!(ratio > 0.82 && ratio < 0.97, "rmse {} px", report.rmse_px);
+    // The scale, read from residuals standardised by their leverage, is the noise itself.
     let sigma_ratio = report.sigma_px / NOISE_PX;
     assert!(
-        sigma_ratio > 0.82 && sigma_ratio < 0.97,
+        sigma_ratio > 0.9 && sigma_ratio < 1.1,
         "{}",
         report.sigma_px
     );
@@ -204,10 +205,22 @@ fn scale_drift_of_chained_two_view_is_removed() {
         max_iterations: 100,
         ..BundleConfig::default()
     };
+    // The noise floor: the minimum reached from the true poses and points (the gauge pair
+    // is exact in both).
+    let mut floor = w.problem.clone();
+    floor.poses = w.poses.clone();
+    floor.points = w.points.clone();
+    bundle_adjust(&mut floor, &cfg).unwrap();
     bundle_adjust(&mut w.problem, &cfg).unwrap();
     for k in 2..10 {
         let ratio = baseline_ratio(&w.problem.poses, k);
-        assert!((ratio - 1.0).abs() < 0.01, "baseline {k}: scale {ratio}");
+        let at_floor = baseline_ratio(&floor.poses, k);
+        // The 10-15% drift is gone to the floor's own scale error (1-2% on the baselines
+        // next to the gauge, where one fixed 25 cm baseline holds the scale).
+        assert!(
+            (ratio - at_floor).abs() < 1e-3 && (ratio - 1.0).abs() < 0.02,
+            "baseline {k}: scale {ratio}, {at_floor} from the truth"
+        );
     }
     let (t1, r1) = pose_errors(&w.problem.poses, &w.poses);
     assert!(

@@ -18,9 +18,12 @@
 //!
 //! **Culling.** After convergence the residual scale is estimated over every observation in
 //! front of its camera, culled ones included (so that the gate does not truncate its own
-//! sample), `sigma = max(min_sigma_px, 1.4826 median(|r_o,x|, |r_o,y|))`, and observations with
-//! `|r_o|^2 > gate_chi2 sigma^2` (5.99: the 95% quantile of chi-square with two degrees of
-//! freedom) are culled, whether or not they took part in the solve; the window is solved
+//! sample), from residuals standardised by the share `1 - h_o` of the noise the solve left
+//! in them (one minus the leverage: a point seen twice absorbs three quarters of its four
+//! coordinates' noise), `sigma = max(min_sigma_px, 1.4826 median(|r_o,x|, |r_o,y|))` over
+//! the standardised `r_o / sqrt(1 - h_o)`, and observations with `|r_o|^2 > gate_chi2 (1 - h_o) sigma^2` (5.99: the
+//! 95% quantile of chi-square with two degrees of freedom) are culled, whether or not they
+//! took part in the solve; the window is solved
 //! again without them, up to [`BundleConfig::max_rounds`] solves. Observations behind a
 //! camera are culled too. Points left with fewer than two usable observations are not moved.
 //!
@@ -265,10 +268,13 @@ pub fn bundle_adjust(
         report.rmse_px = (sum_sq / rows.len().max(1) as f64).sqrt();
         // Scale over every observation in front of its camera (culled ones included, so that
         // gating does not truncate the sample it is estimated from), then the gate.
+        // Each residual is standardised by the share of the noise the solve left in it.
         let residuals = reprojection_errors(problem);
+        let shares = residual_shares(problem, cfg.fixed_poses, &active);
         let coordinates: Vec<f64> = residuals
             .iter()
-            .flatten()
+            .zip(&shares)
+            .filter_map(|(r, share)| r.map(|r| r / share.sqrt()))
             .flat_map(|r| [r.x, r.y])
             .collect();
         let sigma = mad_sigma_about_zero(&coordinates)
@@ -285,7 +291,7 @@ pub fn bundle_adjust(
         };
         let mut new_culls = 0;
         for (o, r) in residuals.iter().enumerate() {
-            if !culled[o] && !r.is_some_and(|r| r.norm_squared() <= limit) {
+            if !culled[o] && !r.is_some_and(|r| r.norm_squared() <= limit * shares[o]) {
                 culled[o] = true;
                 new_culls += usize::from(was_active[o]);
             }
@@ -296,6 +302,37 @@ pub fn bundle_adjust(
     }
     report.culled = (0..culled.len()).filter(|&k| culled[k]).collect();
     Ok(report)
+}
+
+/// Smallest share of the noise variance an observation's residual is credited with, so that
+/// a nearly fully fitted residual is not blown up by its standardisation.
+const MIN_RESIDUAL_SHARE: f64 = 0.1;
+
+/// `1 - h_o` for every observation: the share of the per-coordinate noise variance left in
+/// its residual after a solve on `active` (one minus its leverage `h_o`). An active
+/// observation of a point with `m` active observations gives `3 / (2 m)` of its variance to
+/// the point's three coordinates, and `6 / (2 n)` to its keyframe's pose when that keyframe
+/// (not among the `fixed` oldest) has `n` active observations; an observation the solve did
+/// not use keeps all of it. A point seen twice thus keeps a quarter: its residuals are half
+/// the noise, and a scale read from them unscaled would gate out good observations.
+fn residual_shares(problem: &BundleProblem, fixed: usize, active: &[usize]) -> Vec<f64> {
+    let mut per_point = vec![0usize; problem.points.len()];
+    let mut per_pose = vec![0usize; problem.poses.len()];
+    for &o in active {
+        let obs = &problem.observations[o];
+        per_point[obs.point] += 1;
+        per_pose[obs.pose] += 1;
+    }
+    let mut shares = vec![1.0; problem.observations.len()];
+    for &o in active {
+        let obs = &problem.observations[o];
+        let mut leverage = 1.5 / per_point[obs.point] as f64;
+        if obs.pose >= fixed {
+            leverage += 3.0 / per_pose[obs.pose] as f64;
+        }
+        shares[o] = (1.0 - leverage).max(MIN_RESIDUAL_SHARE);
+    }
+    shares
 }
 
 /// `pi(T_i P_j) - u_o` of every observation, `None` behind the camera.
