@@ -146,21 +146,25 @@ pub fn sampson_covariance(
         .try_inverse()
         .map(|inv| inv * (sigma_px * sigma_px))
         .filter(|c| c.iter().all(|v| v.is_finite()) && (0..5).all(|i| c[(i, i)] >= 0.0))?;
-    let mut problem = SampsonProblem {
+    let problem = SampsonProblem {
         data,
         indices,
         focal,
     };
-    let mut rows = Rows::default();
-    let mut cost = |problem: &mut SampsonProblem, s: &RelState| {
-        rows.clear();
-        problem.evaluate(s, &mut rows);
-        rows.residuals.iter().map(|r| r * r).sum::<f64>() / (sigma_px * sigma_px)
+    // The rows of `SampsonProblem::evaluate` (regular denominators only), without Jacobians.
+    let cost = |s: &RelState| {
+        let e = row_major(&(hat(&s.1) * s.0.matrix()));
+        let sum_sq: f64 = indices
+            .iter()
+            .map(|&i| data.epipolar(&e, i))
+            .filter(|ep| ep.is_regular())
+            .map(|ep| (focal * ep.sampson()).powi(2))
+            .sum();
+        sum_sq / (sigma_px * sigma_px)
     };
-    let at_estimate = cost(&mut problem, state);
+    let at_estimate = cost(state);
     Some(vofront_robust::secant_covariance(&local, |delta| {
-        let moved = problem.retract(state, delta);
-        cost(&mut problem, &moved) - at_estimate
+        cost(&problem.retract(state, delta)) - at_estimate
     }))
 }
 
