@@ -20,12 +20,12 @@
 //! front of its camera, culled ones included (so that the gate does not truncate its own
 //! sample), from residuals standardised by the share `1 - h_o` of the noise the solve left
 //! in them (one minus the leverage: a point seen twice absorbs three quarters of its four
-//! coordinates' noise), `sigma = max(min_sigma_px, 1.4826 median(|r_o,x|, |r_o,y|))` over
-//! the standardised `r_o / sqrt(1 - h_o)`, and observations with `|r_o|^2 > gate_chi2 (1 - h_o) sigma^2` (5.99: the
-//! 95% quantile of chi-square with two degrees of freedom) are culled, whether or not they
-//! took part in the solve; the window is solved
-//! again without them, up to [`BundleConfig::max_rounds`] solves. Observations behind a
-//! camera are culled too. Points left with fewer than two usable observations are not moved.
+//! coordinates' noise): `sigma = max(min_sigma_px, 1.4826 median(|r_o,x|, |r_o,y|))` over
+//! the standardised `r_o / sqrt(1 - h_o)`. Observations with
+//! `|r_o|^2 > gate_chi2 (1 - h_o) sigma^2` (5.99: the 95% quantile of chi-square with two
+//! degrees of freedom) are culled, whether or not they took part in the solve; the window is
+//! solved again without them, up to [`BundleConfig::max_rounds`] solves. Observations behind
+//! a camera are culled too. Points left with fewer than two usable observations are not moved.
 //!
 //! ```
 //! use nalgebra::{Isometry3, Point3, Vector2, Vector3};
@@ -111,7 +111,8 @@ pub struct BundleConfig {
     pub min_relative_decrease: f64,
     /// A solve stops when the whole step (metres and radians) is shorter than this.
     pub min_step: f64,
-    /// Observations with `|r|^2 > gate_chi2 sigma^2` are culled after convergence.
+    /// Observations with `|r|^2 > gate_chi2 (1 - h) sigma^2` (`h` the observation's
+    /// leverage, see the module documentation) are culled after convergence.
     pub gate_chi2: f64,
     /// Floor of the estimated residual scale, pixels.
     pub min_sigma_px: f64,
@@ -153,7 +154,8 @@ pub struct BundleReport {
     /// gate, or behind a camera), ascending. Those culled after the last round took part in
     /// the final solve.
     pub culled: Vec<usize>,
-    /// Estimated residual scale at the end, pixels per coordinate.
+    /// Estimated noise scale at the end (from the leverage-standardised residuals), pixels
+    /// per coordinate.
     pub sigma_px: f64,
     /// Root mean square of `|r|` over the observations of the last solve, pixels.
     pub rmse_px: f64,
