@@ -26,7 +26,7 @@ use std::time::Instant;
 
 use nalgebra::{Isometry3, Point3, Vector2};
 use vofront_features::{match_descriptors, match_windowed, Features, Match, MatchConfig};
-use vofront_geometry::pnp::{solve_pnp_ransac, PnpConfig, PnpResult};
+use vofront_geometry::pnp::{solve_pnp_ransac_with_sigmas, PnpConfig, PnpResult};
 use vofront_geometry::Camera;
 use vofront_robust::{Quality, Verdict};
 
@@ -296,24 +296,36 @@ impl PointLocator<'_> {
             .iter()
             .map(|m| feature_pixel(current, m.train))
             .collect();
-        let fit = solve_pnp_ransac(&world, &pixels, self.camera, Some(prior), self.pnp)
-            .map_err(VoError::from)
-            .and_then(|fit| {
-                if fit.quality.verdict == Verdict::Failed {
-                    Err(VoError::Rejected {
-                        what: "PnP",
-                        reasons: reasons_text(&fit.quality),
-                    })
-                } else if fit.inlier_count() >= self.min_inliers {
-                    Ok(fit)
-                } else {
-                    Err(VoError::TooFew {
-                        what: "PnP inliers",
-                        got: fit.inlier_count(),
-                        need: self.min_inliers,
-                    })
-                }
-            });
+        // A keypoint of pyramid level k is located to about scale_factor^k pixels.
+        let sigmas: Vec<f64> = matches
+            .iter()
+            .map(|m| f64::from(current.scales()[m.train as usize]))
+            .collect();
+        let fit = solve_pnp_ransac_with_sigmas(
+            &world,
+            &pixels,
+            &sigmas,
+            self.camera,
+            Some(prior),
+            self.pnp,
+        )
+        .map_err(VoError::from)
+        .and_then(|fit| {
+            if fit.quality.verdict == Verdict::Failed {
+                Err(VoError::Rejected {
+                    what: "PnP",
+                    reasons: reasons_text(&fit.quality),
+                })
+            } else if fit.inlier_count() >= self.min_inliers {
+                Ok(fit)
+            } else {
+                Err(VoError::TooFew {
+                    what: "PnP inliers",
+                    got: fit.inlier_count(),
+                    need: self.min_inliers,
+                })
+            }
+        });
         Located {
             matches,
             points: world,

@@ -1,12 +1,18 @@
 //! Absolute pose from 3D-2D correspondences: P3P inside LO-MSAC, then motion-only refinement.
 //!
-//! The refinement minimises `sum_i rho(|u_i - pi(T P_i)|)` over `T = T_cw` with
+//! The refinement minimises `sum_i rho(|u_i - pi(T P_i)| / s_i)` over `T = T_cw` with
 //! `pi(X) = K D(X_xy / X_z)` (the full camera model, distortion included), a Huber loss and
 //! the left perturbation `T <- exp(delta) T`, `delta = (rho, phi)`, through
 //! [`vofront_robust::irls()`]. Its `sigma^2 H^-1` covariance of `delta` (metres, radians) is
 //! returned as a quality score (`None` when unknown: not refined, or the refinement failed),
 //! with the full [`Quality`] record ([`pnp_quality`]): support, the a-contrario chance test on
 //! re-paired correspondences, the residual scale and the sigmas in metres and degrees.
+//!
+//! `s_i` is the relative noise scale of measurement `i` ([`solve_pnp_ransac_with_sigmas`]; 1
+//! for every one in [`solve_pnp_ransac`]): an ORB keypoint found at pyramid level `k` is
+//! located to about `1.2^k` pixels, so its residual is divided by that before the loss, the
+//! inlier threshold and the chance test apply. The covariance is then of the whitened
+//! residuals, in units where `s_i = 1` has the noise `sigma_px`.
 
 use nalgebra::{Isometry3, Matrix2x3, Matrix6, Point3, SVector, Vector2, Vector3};
 use vofront_robust::quality::{block_rows, log10_nfa, repaired_chance_rate, rms_of};
@@ -89,6 +95,8 @@ struct PnpEstimator<'a> {
     normalized: &'a [Vector2<f64>],
     /// Observed pixels, index-aligned with `world`.
     pixels: &'a [Vector2<f64>],
+    /// Relative noise scale of each pixel, index-aligned with `world`.
+    sigmas: &'a [f64],
     camera: &'a Camera,
     /// Residual scale of the Huber loss, pixels.
     sigma_px: f64,
@@ -141,6 +149,7 @@ impl Estimator for PnpEstimator<'_> {
             camera: self.camera,
             world: self.world,
             pixels: self.pixels,
+            sigmas: self.sigmas,
             indices,
         };
         let cfg = huber_irls(self.sigma_px, LO_IRLS_ITERATIONS);
@@ -151,14 +160,16 @@ impl Estimator for PnpEstimator<'_> {
 
     fn residual_sq(&self, t: &Isometry3<f64>, i: usize) -> f64 {
         crate::residual::reprojection_sq(&(t * self.world[i]).coords, &self.normalized[i])
+            / (self.sigmas[i] * self.sigmas[i])
     }
 }
 
-/// Reprojection problem over the inliers.
+/// Reprojection problem over the inliers, each residual divided by its noise scale.
 struct Reprojection<'a> {
     camera: &'a Camera,
     world: &'a [Point3<f64>],
     pixels: &'a [Vector2<f64>],
+    sigmas: &'a [f64],
     indices: &'a [usize],
 }
 
@@ -171,8 +182,9 @@ impl Problem<6> for Reprojection<'_> {
             let Some((pixel, jpix)) = project_with_jacobian(self.camera, &x) else {
                 continue;
             };
-            let j = jpix * point_jacobian(&x);
-            let r = pixel - self.pixels[i];
+            let w = 1.0 / self.sigmas[i];
+            let j = jpix * point_jacobian(&x) * w;
+            let r = (pixel - self.pixels[i]) * w;
             rows.push(j.row(0).transpose(), r.x);
             rows.push(j.row(1).transpose(), r.y);
         }
@@ -234,11 +246,35 @@ pub fn solve_pnp_ransac(
     prior: Option<Isometry3<f64>>,
     cfg: &PnpConfig,
 ) -> Result<PnpResult, GeometryError> {
+    let sigmas = vec![1.0; pixels.len()];
+    solve_pnp_ransac_with_sigmas(points_world, pixels, &sigmas, camera, prior, cfg)
+}
+
+/// [`solve_pnp_ransac`] with a relative noise scale `sigmas[i] > 0` for each pixel (see the
+/// module documentation): correspondence `i` is an inlier when its reprojection error is
+/// under `ransac.threshold * sigmas[i]` pixels, and its residual is divided by `sigmas[i]` in
+/// the refinement. [`PnpResult::rmse_px`] stays in plain pixels.
+pub fn solve_pnp_ransac_with_sigmas(
+    points_world: &[Point3<f64>],
+    pixels: &[Vector2<f64>],
+    sigmas: &[f64],
+    camera: &Camera,
+    prior: Option<Isometry3<f64>>,
+    cfg: &PnpConfig,
+) -> Result<PnpResult, GeometryError> {
     camera.validate()?;
     if points_world.len() != pixels.len() {
         return Err(GeometryError::LengthMismatch(
             points_world.len(),
             pixels.len(),
+        ));
+    }
+    if sigmas.len() != pixels.len() {
+        return Err(GeometryError::LengthMismatch(sigmas.len(), pixels.len()));
+    }
+    if sigmas.iter().any(|s| !(s.is_finite() && *s > 0.0)) {
+        return Err(GeometryError::InvalidConfig(
+            "every pixel noise scale must be finite and positive",
         ));
     }
     if points_world.len() < MIN_POINTS {
@@ -284,11 +320,13 @@ pub fn solve_pnp_ransac(
     }
     let focal = 0.5 * (camera.pinhole.fx + camera.pinhole.fy);
     let px: Vec<Vector2<f64>> = index.iter().map(|&i| pixels[i]).collect();
+    let sg: Vec<f64> = index.iter().map(|&i| sigmas[i]).collect();
     let est = PnpEstimator {
         world: &world,
         bearings: &bearings,
         normalized: &normalized,
         pixels: &px,
+        sigmas: &sg,
         camera,
         sigma_px: cfg.sigma_px,
     };
@@ -312,7 +350,7 @@ pub fn solve_pnp_ransac(
     let inliers_of = |t: &Isometry3<f64>| -> Vec<usize> {
         (0..world.len())
             .filter(|&k| {
-                reprojection_px(camera, t, &world[k], &pixels[index[k]]) < cfg.ransac.threshold
+                reprojection_px(camera, t, &world[k], &px[k]) < cfg.ransac.threshold * sg[k]
             })
             .collect()
     };
@@ -329,6 +367,7 @@ pub fn solve_pnp_ransac(
             camera,
             world: &world,
             pixels: &px,
+            sigmas: &sg,
             indices: &used,
         };
         if let Ok(res) = irls(&mut problem, pose, &huber_irls(cfg.sigma_px, 20)) {
@@ -341,10 +380,13 @@ pub fn solve_pnp_ransac(
         used = inliers_of(&pose);
     }
     let mut inliers = vec![false; pixels.len()];
-    let mut sq = 0.0;
+    // Plain and whitened (divided by the noise scale) squared reprojection errors.
+    let (mut sq, mut sq_white) = (0.0, 0.0);
     for &k in &used {
         inliers[index[k]] = true;
-        sq += reprojection_px(camera, &pose, &world[k], &pixels[index[k]]).powi(2);
+        let e_sq = reprojection_px(camera, &pose, &world[k], &px[k]).powi(2);
+        sq += e_sq;
+        sq_white += e_sq / (sg[k] * sg[k]);
     }
     let inlier_count = used.len();
     if inlier_count < cfg.min_inliers.max(MIN_POINTS) {
@@ -354,7 +396,7 @@ pub fn solve_pnp_ransac(
         });
     }
     let p0 = repaired_chance_rate(world.len(), |k, j| {
-        reprojection_px(camera, &pose, &world[k], &px[j]) < cfg.ransac.threshold
+        reprojection_px(camera, &pose, &world[k], &px[j]) < cfg.ransac.threshold * sg[j]
     });
     let evidence = PnpEvidence {
         candidates: pixels.len(),
@@ -362,7 +404,7 @@ pub fn solve_pnp_ransac(
         inliers: inlier_count,
         p0,
         hypotheses: (iterations * P3P_SOLUTIONS + 1) as f64,
-        sigma_px: (sq / (2 * inlier_count).saturating_sub(6).max(1) as f64).sqrt(),
+        sigma_px: (sq_white / (2 * inlier_count).saturating_sub(6).max(1) as f64).sqrt(),
         iterations: refine_iterations,
         converged,
         // A refinement that ran but left no covariance met singular normal equations.
@@ -396,7 +438,7 @@ pub struct PnpEvidence {
     /// Hypotheses scored: RANSAC iterations times the P3P solutions, plus the prior.
     pub hypotheses: f64,
     /// Per-coordinate reprojection residual scale of the inliers,
-    /// `sqrt(sum |u - pi(T P)|^2 / (2 n - 6))`, pixels.
+    /// `sqrt(sum |u - pi(T P)|^2 / s^2 / (2 n - 6))` (`s` each pixel's noise scale), pixels.
     pub sigma_px: f64,
     /// Iterations of the Huber refinement.
     pub iterations: usize,

@@ -246,7 +246,14 @@ fn bad_input_gives_typed_errors() {
         pose: 9,
         point: 0,
         pixel: Vector2::zeros(),
+        sigma: 1.0,
     });
+    assert!(matches!(
+        bundle_adjust(&mut p, &BundleConfig::default()),
+        Err(GeometryError::InvalidConfig(_))
+    ));
+    let mut p = w.problem.clone();
+    p.observations[0].sigma = 0.0;
     assert!(matches!(
         bundle_adjust(&mut p, &BundleConfig::default()),
         Err(GeometryError::InvalidConfig(_))
@@ -290,4 +297,35 @@ fn results_do_not_depend_on_the_thread_count() {
     assert!(report_one.iterations > 1, "{report_one:?}");
     assert_eq!(report_one, report_four);
     assert_eq!(one, four);
+}
+
+/// An observation's noise scale divides its residual: 12 px off, it is culled at scale 1 and
+/// kept at scale 24 (0.5 scaled pixels, inside the gate at the window's 0.5 px noise), and a window whose every scale is 2
+/// solves to the same poses as with scale 1 (a common factor changes no weight ratio).
+#[test]
+fn noise_scales_divide_the_residuals() {
+    let w = forward_window(5, 6, 200, NOISE_PX, 0.0);
+    let mut problem = w.problem.clone();
+    problem.observations[0].pixel.x += 12.0;
+    let culled = |problem: &mut vofront_geometry::bundle::BundleProblem| {
+        let report = bundle_adjust(problem, &BundleConfig::default()).unwrap();
+        report.culled.contains(&0)
+    };
+    assert!(culled(&mut problem.clone()));
+    problem.observations[0].sigma = 24.0;
+    assert!(!culled(&mut problem));
+    let mut unit = w.problem.clone();
+    let mut doubled = w.problem.clone();
+    for o in &mut doubled.observations {
+        o.sigma = 2.0;
+    }
+    let cfg = BundleConfig {
+        sigma_px: 0.5,
+        min_sigma_px: 0.025,
+        ..BundleConfig::default()
+    };
+    bundle_adjust(&mut unit, &BundleConfig::default()).unwrap();
+    bundle_adjust(&mut doubled, &cfg).unwrap();
+    let (dt, dr) = pose_errors(&doubled.poses, &unit.poses);
+    assert!(dt < 1e-6 && dr < 1e-5, "{dt} m {dr} deg");
 }

@@ -12,7 +12,7 @@
 use vofront_geometry::bundle::{bundle_adjust, BundleConfig, BundleProblem, Observation};
 use vofront_geometry::Camera;
 
-use super::map::{LocalMap, PointId};
+use super::map::{level_sigma, LocalMap, PointId};
 use crate::odometry::feature_pixel;
 
 /// Keyframes held fixed: the gauge of a monocular window (six rigid degrees of freedom and
@@ -62,11 +62,12 @@ impl LocalMap {
                 let Some(pose) = self.index_of(kid) else {
                     continue;
                 };
-                let pixel = feature_pixel(&self.keyframes[pose].features, f);
+                let features = &self.keyframes[pose].features;
                 problem.observations.push(Observation {
                     pose,
                     point: j,
-                    pixel,
+                    pixel: feature_pixel(features, f),
+                    sigma: level_sigma(features, f),
                 });
                 links.push((*id, kid, f));
             }
@@ -151,7 +152,7 @@ mod tests {
                 descriptors,
             )
             .unwrap();
-            map.push_keyframe(*t_wc, features);
+            map.push_keyframe(*t_wc, features, k);
         }
         for (j, p) in points.iter().enumerate() {
             let views: Vec<(usize, u32)> = (0..4).map(|k| (k, j as u32)).collect();

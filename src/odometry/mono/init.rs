@@ -37,13 +37,14 @@ pub(super) struct InitFailure {
     pub keep_reference: bool,
 }
 
-/// A two-keyframe map from `reference` (at `t_w1`) and `current`, with the frame's quality
-/// and the two-view pose's quality record.
+/// A two-keyframe map from `reference` (at `t_w1`) and `current`, frames `frames.0` and
+/// `frames.1`, with the frame's quality and the two-view pose's quality record.
 pub(super) fn initialise(
     rules: &InitRules,
     reference: &Features,
     t_w1: &Isometry3<f64>,
     current: &Features,
+    frames: (usize, usize),
 ) -> Result<(LocalMap, FrameQuality, Quality), InitFailure> {
     let give_up = |why: String| InitFailure {
         why,
@@ -89,8 +90,8 @@ pub(super) fn initialise(
         )));
     }
     let mut map = LocalMap::default();
-    let k1 = map.push_keyframe(*t_w1, reference.clone());
-    let k2 = map.push_keyframe(t_w1 * rel.pose.inverse(), current.clone());
+    let k1 = map.push_keyframe(*t_w1, reference.clone(), frames.0);
+    let k2 = map.push_keyframe(t_w1 * rel.pose.inverse(), current.clone(), frames.1);
     for (m, p) in matches.iter().zip(&rel.points) {
         if let Some(p) = p {
             map.add_point(t_w1 * p, &[(k1, m.query), (k2, m.train)]);

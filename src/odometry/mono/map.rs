@@ -45,6 +45,8 @@ pub(super) struct MapPoint {
 pub(super) struct MapKeyframe {
     /// Unique, increasing id.
     pub id: usize,
+    /// Index of the frame it was made from (frames given to the tracker, from 0).
+    pub frame: usize,
     /// Camera-to-world pose.
     pub t_wc: Isometry3<f64>,
     /// Its ORB features.
@@ -108,11 +110,18 @@ impl LocalMap {
         Some((a.centre() - b.centre()).norm())
     }
 
-    /// Adds a keyframe with no points yet; returns its index in the window.
-    pub fn push_keyframe(&mut self, t_wc: Isometry3<f64>, features: Features) -> usize {
+    /// Adds a keyframe made from frame `frame` with no points yet; returns its index in the
+    /// window.
+    pub fn push_keyframe(
+        &mut self,
+        t_wc: Isometry3<f64>,
+        features: Features,
+        frame: usize,
+    ) -> usize {
         let n = features.len();
         self.keyframes.push_back(MapKeyframe {
             id: self.next_keyframe,
+            frame,
             t_wc,
             features,
             point_of: vec![None; n],
@@ -256,7 +265,8 @@ impl LocalMap {
                     feature_pixel(&a.features, fa),
                     feature_pixel(&b.features, fb),
                 );
-                if let Some(x_a) = triangulate_pair(camera, &t_ba, &ua, &ub, rules) {
+                let sigmas = (level_sigma(&a.features, fa), level_sigma(&b.features, fb));
+                if let Some(x_a) = triangulate_pair(camera, &t_ba, (&ua, &ub), sigmas, rules) {
                     new_points.push((a.t_wc * x_a, fa, fb));
                 }
             }
@@ -322,21 +332,23 @@ impl LocalMap {
         }
     }
 
-    /// Observations of `id` in the window: pose `T_cw` and pixel.
-    fn views(&self, id: PointId) -> Vec<(Isometry3<f64>, Vector2<f64>)> {
+    /// Observations of `id` in the window: pose `T_cw`, pixel and its noise scale.
+    fn views(&self, id: PointId) -> Vec<(Isometry3<f64>, Vector2<f64>, f64)> {
         self.points.get(&id).map_or_else(Vec::new, |p| {
             p.observations
                 .iter()
                 .filter_map(|&(kid, f)| {
                     let kf = &self.keyframes[self.index_of(kid)?];
-                    Some((kf.t_wc.inverse(), feature_pixel(&kf.features, f)))
+                    let pixel = feature_pixel(&kf.features, f);
+                    Some((kf.t_wc.inverse(), pixel, level_sigma(&kf.features, f)))
                 })
                 .collect()
         })
     }
 
-    /// Gauss-Newton on the point's reprojection errors (poses fixed) when it has two or more
-    /// views; false when the result is behind a camera or off by more than `max_px` in a view.
+    /// Gauss-Newton on the point's reprojection errors, each divided by its noise scale `s`
+    /// (poses fixed), when it has two or more views; false when the result is behind a camera
+    /// or off by more than `max_px s` in a view.
     fn refine_point(&mut self, camera: &Camera, id: PointId, max_px: f64) -> bool {
         let views = self.views(id);
         let Some(p) = self.points.get_mut(&id) else {
@@ -348,7 +360,7 @@ impl LocalMap {
             for _ in 0..POINT_ITERATIONS {
                 let mut h = Matrix3::zeros();
                 let mut g = Vector3::zeros();
-                for (t_cw, u) in &views {
+                for (t_cw, u, sigma) in &views {
                     let c = t_cw * x;
                     if c.z <= 1e-6 {
                         return false;
@@ -365,8 +377,8 @@ impl LocalMap {
                         k.fy * iz,
                         -k.fy * c.y * iz * iz,
                     );
-                    let j = d_pi * t_cw.rotation.to_rotation_matrix().matrix();
-                    let r = q - u;
+                    let j = d_pi * t_cw.rotation.to_rotation_matrix().matrix() / *sigma;
+                    let r = (q - u) / *sigma;
                     h += j.transpose() * j;
                     g += j.transpose() * r;
                 }
@@ -379,12 +391,12 @@ impl LocalMap {
                 }
             }
         }
-        let fits = views.iter().all(|(t_cw, u)| {
+        let fits = views.iter().all(|(t_cw, u, sigma)| {
             let c = t_cw * x;
             c.z > 0.0
                 && camera
                     .project(&c.coords)
-                    .is_some_and(|q| (q - u).norm() < max_px)
+                    .is_some_and(|q| (q - u).norm() < max_px * sigma)
         });
         if fits {
             p.position = x;
@@ -419,14 +431,20 @@ impl LocalMap {
     }
 }
 
-/// The point (camera-a frame) seen at pixel `ua` in camera a and `ub` in camera b, with
-/// `T_ba` known: DLT, kept when in front of both, reprojecting within the bound and with
-/// enough parallax.
+/// Noise scale of feature `f`'s position: its pyramid level's scale (a keypoint of level `k`
+/// is located to about `scale_factor^k` pixels).
+pub(super) fn level_sigma(features: &Features, f: u32) -> f64 {
+    f64::from(features.scales()[f as usize])
+}
+
+/// The point (camera-a frame) seen at pixel `ua` in camera a and `ub` in camera b (noise
+/// scales `sa`, `sb`), with `T_ba` known: DLT, kept when in front of both, reprojecting within
+/// `max_reprojection_px` times the noise scale in each and with enough parallax.
 pub(super) fn triangulate_pair(
     camera: &Camera,
     t_ba: &Isometry3<f64>,
-    ua: &Vector2<f64>,
-    ub: &Vector2<f64>,
+    (ua, ub): (&Vector2<f64>, &Vector2<f64>),
+    (sa, sb): (f64, f64),
     rules: &MapRules,
 ) -> Option<Point3<f64>> {
     let (na, nb) = (
@@ -436,14 +454,14 @@ pub(super) fn triangulate_pair(
     let (fa, fb) = (Vector3::new(na.x, na.y, 1.0), Vector3::new(nb.x, nb.y, 1.0));
     let x_a = triangulate_dlt(t_ba, &fa, &fb)?;
     let x_b = t_ba * x_a;
-    let reprojects = |p: &Point3<f64>, u: &Vector2<f64>| {
+    let reprojects = |p: &Point3<f64>, u: &Vector2<f64>, s: f64| {
         p.z > 0.0
             && camera
                 .project(&p.coords)
-                .is_some_and(|q| (q - u).norm() < rules.max_reprojection_px)
+                .is_some_and(|q| (q - u).norm() < rules.max_reprojection_px * s)
     };
-    (reprojects(&x_a, ua)
-        && reprojects(&x_b, ub)
+    (reprojects(&x_a, ua, sa)
+        && reprojects(&x_b, ub, sb)
         && parallax_deg(t_ba, &x_a) >= rules.min_point_parallax_deg)
         .then_some(x_a)
 }

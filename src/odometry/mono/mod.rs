@@ -34,6 +34,8 @@ mod adjust;
 mod config;
 mod init;
 mod map;
+#[cfg(test)]
+mod tests;
 
 use std::time::Instant;
 
@@ -123,6 +125,8 @@ pub struct MonoTracker {
     lost_step: Option<f64>,
     /// Consecutive lost frames the motion model has coasted through.
     coasted: usize,
+    /// Index of the frame being tracked (frames given so far before it).
+    frame: usize,
 }
 
 impl MonoTracker {
@@ -139,6 +143,7 @@ impl MonoTracker {
             lost_map: None,
             lost_step: None,
             coasted: 0,
+            frame: 0,
         })
     }
 
@@ -218,6 +223,11 @@ impl MonoTracker {
         let fit = match fit {
             Ok(fit) => fit,
             Err(why) => {
+                self.lost_step = self.motion.step_length();
+                let map = match self.restart_from_window(map, &current, start) {
+                    Ok(estimate) => return estimate,
+                    Err(map) => map,
+                };
                 self.lost_map = Some(map);
                 if current.len() >= self.cfg.min_init_points {
                     self.state = State::Initialising {
@@ -226,7 +236,6 @@ impl MonoTracker {
                         frames: 0,
                     };
                 }
-                self.lost_step = self.motion.step_length();
                 let quality = FrameQuality::default();
                 let why = Some(why.to_string());
                 return Self::estimate(predicted, TrackStatus::Lost, quality, why, start);
@@ -287,7 +296,7 @@ impl MonoTracker {
         };
         let first_residual = if keyframe {
             let rules = self.map_rules();
-            let k = map.push_keyframe(t_wc, current);
+            let k = map.push_keyframe(t_wc, current, self.frame);
             for (m, id, _) in &tracked {
                 map.observe(*id, k, m.train);
             }
@@ -362,6 +371,42 @@ impl MonoTracker {
         Self::estimate(pose, status, quality, message, start)
     }
 
+    /// After a failed tracking attempt, a new map from `current` and the newest keyframe of
+    /// the lost `map` with enough parallax (newest first), at once: the frame is not lost, and
+    /// the new map starts at that keyframe's pose with its scale joined to the lost map's
+    /// (`start_map`). Gives the map back when no keyframe initialises.
+    fn restart_from_window(
+        &mut self,
+        map: LocalMap,
+        current: &Features,
+        start: Instant,
+    ) -> Result<FrameEstimate, LocalMap> {
+        let rules = self.init_rules();
+        let restarted = map.keyframes.iter().rev().find_map(|kf| {
+            let frames = (kf.frame, self.frame);
+            let (new, quality, pose_quality) =
+                initialise(&rules, &kf.features, &kf.t_wc, current, frames).ok()?;
+            Some((new, kf.t_wc, self.frame - kf.frame, quality, pose_quality))
+        });
+        let Some((new, t_w1, elapsed, quality, pose_quality)) = restarted else {
+            return Err(map);
+        };
+        self.lost_map = Some(map);
+        let estimate = self.start_map(new, &t_w1, elapsed, quality, start);
+        Ok(estimate.judged(pose_quality))
+    }
+
+    /// The rules of a two-view initialisation.
+    fn init_rules(&self) -> InitRules<'_> {
+        InitRules {
+            camera: &self.camera,
+            matching: &self.cfg.matching,
+            relative: &self.cfg.relative,
+            min_points: self.cfg.min_init_points,
+            min_parallax_deg: self.cfg.min_init_parallax_deg,
+        }
+    }
+
     /// The lost map, taken back, when `current` locates against it from the coasting
     /// prediction (the wide search window) with at least `min_keyframe_inliers` inliers: a
     /// short fault (a dark, blurred or corrupt frame) then costs no new map and no scale.
@@ -401,6 +446,7 @@ impl Tracker for MonoTracker {
     fn track(&mut self, frame: &Frame) -> FrameEstimate {
         let predicted = self.motion.predict().unwrap_or_else(Isometry3::identity);
         let estimate = self.track_from(frame, predicted);
+        self.frame += 1;
         // A lost frame coasts on the motion model for a while (so that a new map is placed
         // where the camera has gone), then the model holds still.
         if estimate.status == TrackStatus::Lost && self.initialised_once {
@@ -470,14 +516,9 @@ impl MonoTracker {
                 t_wc,
                 frames,
             } => {
-                let rules = InitRules {
-                    camera: &self.camera,
-                    matching: &self.cfg.matching,
-                    relative: &self.cfg.relative,
-                    min_points: self.cfg.min_init_points,
-                    min_parallax_deg: self.cfg.min_init_parallax_deg,
-                };
-                match initialise(&rules, &reference, &t_wc, &current) {
+                let rules = self.init_rules();
+                let pair = (self.frame - frames - 1, self.frame);
+                match initialise(&rules, &reference, &t_wc, &current, pair) {
                     Ok((map, quality, pose_quality)) => self
                         .start_map(map, &t_wc, frames + 1, quality, start)
                         .judged(pose_quality),

@@ -4,7 +4,10 @@
 //! Unknowns: poses `T_i = T_cw` of the keyframes (left increments
 //! `T_i <- exp(delta_i) T_i`, [`crate::lie::retract_left`]) and world points `P_j` (additive).
 //! Residual of observation `o` (keyframe `i`, point `j`, observed pixel `u_o`):
-//! `r_o = pi(T_i P_j) - u_o` in pixels through the full [`Camera`] model; cost
+//! `r_o = (pi(T_i P_j) - u_o) / s_o` in pixels through the full [`Camera`] model, with `s_o`
+//! the observation's relative noise scale ([`Observation::sigma`]: 1 at the finest keypoint
+//! level, `1.2^k` for an ORB keypoint of level `k`), so that the loss, the gate and the report
+//! are in pixels of a scale-1 observation; cost
 //! `sum_o s^2 rho(|r_o| / s)` with `rho` a robust loss of `vofront_robust` and `s` its scale in
 //! pixels ([`BundleConfig::sigma_px`]). Each step eliminates the points (Schur complement on
 //! their 3x3 blocks, module `schur`) and solves the dense reduced camera system by Cholesky;
@@ -45,7 +48,7 @@
 //! for (i, pose) in poses.iter().enumerate() {
 //!     for (j, p) in points.iter().enumerate() {
 //!         let pixel = camera.project(&(pose * p).coords).unwrap();
-//!         observations.push(Observation { pose: i, point: j, pixel });
+//!         observations.push(Observation { pose: i, point: j, pixel, sigma: 1.0 });
 //!     }
 //! }
 //! let truth = poses[2];
@@ -79,6 +82,9 @@ pub struct Observation {
     pub point: usize,
     /// Observed pixel, `(0, 0)` the centre of the top-left pixel.
     pub pixel: Vector2<f64>,
+    /// Relative noise scale of `pixel` (finite, positive; 1 for a keypoint of the finest
+    /// pyramid level): its residual is divided by it.
+    pub sigma: f64,
 }
 
 /// A window of keyframes and the points they observe; [`bundle_adjust`] refines `poses` and
@@ -190,6 +196,11 @@ fn validate(problem: &BundleProblem, cfg: &BundleConfig) -> Result<(), GeometryE
             "an observation's point or keyframe index is out of range",
         ));
     }
+    if problem.observations.iter().any(|o| o.sigma <= 0.0) {
+        return Err(GeometryError::InvalidConfig(
+            "an observation's noise scale must be positive",
+        ));
+    }
     let finite_poses = problem
         .poses
         .iter()
@@ -201,7 +212,7 @@ fn validate(problem: &BundleProblem, cfg: &BundleConfig) -> Result<(), GeometryE
     let finite_pixels = problem
         .observations
         .iter()
-        .all(|o| o.pixel.iter().all(|v| v.is_finite()));
+        .all(|o| o.pixel.iter().all(|v| v.is_finite()) && o.sigma.is_finite());
     if finite_poses && finite_points && finite_pixels {
         Ok(())
     } else {
@@ -344,7 +355,10 @@ fn reprojection_errors(problem: &BundleProblem) -> Vec<Option<Vector2<f64>>> {
         .par_iter()
         .map(|o| {
             let x = problem.poses[o.pose] * problem.points[o.point];
-            problem.camera.project(&x.coords).map(|u| u - o.pixel)
+            problem
+                .camera
+                .project(&x.coords)
+                .map(|u| (u - o.pixel) / o.sigma)
         })
         .collect()
 }

@@ -2,7 +2,8 @@
 //! [`LmProblem`] with a [`SchurSystem`].
 //!
 //! Observation `o` of world point `P_j` from keyframe `i` with pose `T_i = T_cw`:
-//! `x = T_i P_j` (camera frame), residual `r_o = pi(x) - u_o` in pixels with `pi` the full
+//! `x = T_i P_j` (camera frame), residual `r_o = (pi(x) - u_o) / s_o` in pixels (`s_o` the
+//! observation's relative noise scale, which divides the Jacobians too) with `pi` the full
 //! camera model ([`Camera`], distortion included). Jacobians, with `A = d pi / d x` (2x3):
 //! `dr/d delta_i = A [I | -hat(x)]` for the left increment `T_i <- exp(delta_i) T_i` and
 //! `dr/d P_j = A R_i`. Each observation is weighted by the robust loss on its norm in units of
@@ -95,8 +96,9 @@ impl LmProblem for Reprojection<'_> {
                     Some((pixel, a)) => {
                         let rotation: Matrix3<f64> =
                             pose.rotation.to_rotation_matrix().into_inner();
+                        let a = a / obs.sigma;
                         *row = Linearized {
-                            residual: pixel - obs.pixel,
+                            residual: (pixel - obs.pixel) / obs.sigma,
                             pose: a * point_jacobian(&x),
                             point: a * rotation,
                         };

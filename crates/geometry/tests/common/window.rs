@@ -79,6 +79,7 @@ pub fn forward_window(
                 pose: i,
                 point: j,
                 pixel,
+                sigma: 1.0,
             });
             outlier.push(bad);
         }

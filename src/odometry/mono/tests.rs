@@ -1,0 +1,57 @@
+//! The tracker's recovery paths, driven on the rendered street drive.
+
+use std::time::Instant;
+
+use vofront_fixtures::driving::{DrivingSequence, FRAME_RATE};
+use vofront_fixtures::image2d::to_gray8;
+use vofront_geometry::lie::direction_angle_deg;
+
+use super::{MonoConfig, MonoTracker, State};
+use crate::dataset::Frame;
+use crate::odometry::{TrackStatus, Tracker};
+
+/// When tracking against the map fails, the frame is not lost: a new map is made at once
+/// from it and a keyframe of the window, placed at that keyframe's pose with the old map's
+/// scale, and the next frame is tracked on it.
+#[test]
+fn a_failed_frame_restarts_from_a_window_keyframe_with_the_map_scale() {
+    let drive = DrivingSequence::new(11, 12);
+    let frame = |i: usize| {
+        Frame::new(
+            i as f64 / FRAME_RATE,
+            to_gray8(&drive.render(i).image),
+            None,
+        )
+        .unwrap()
+    };
+    let mut tracker = MonoTracker::new(drive.camera, MonoConfig::default()).unwrap();
+    let poses: Vec<_> = (0..10).map(|i| tracker.track(&frame(i)).pose_wc).collect();
+    let State::Tracking { map, .. } = std::mem::replace(&mut tracker.state, State::Empty) else {
+        panic!("not tracking after ten frames");
+    };
+    // Frame 10, as if its tracking had failed.
+    let current = tracker.orb.detect_and_describe(frame(10).image()).unwrap();
+    let Ok(restart) = tracker.restart_from_window(map, &current, Instant::now()) else {
+        panic!("no window keyframe initialised with frame 10");
+    };
+    tracker.frame += 1;
+    assert_eq!(restart.status, TrackStatus::Reinitialised);
+    let message = restart.message.clone().unwrap_or_default();
+    assert!(message.contains("joined to the lost one"), "{message}");
+    // The step 9 -> 10 has the direction of the true one (the tracked steps before it are 1-7
+    // degrees off: 0.3 map units between frames a few centimetres apart in error) and the
+    // length of the map's earlier steps (the scale is kept).
+    // The tracker's world is the first camera's frame.
+    let true_wc = |i: usize| drive.poses_wc[0].inverse() * drive.poses_wc[i];
+    let step = restart.pose_wc.translation.vector - poses[9].translation.vector;
+    let truth = true_wc(10).translation.vector - true_wc(9).translation.vector;
+    let angle = direction_angle_deg(&step, &truth);
+    assert!(angle < 10.0, "step direction {angle} deg off");
+    let mut before: Vec<f64> = (5..10)
+        .map(|i| (poses[i].translation.vector - poses[i - 1].translation.vector).norm())
+        .collect();
+    let ratio = step.norm() / crate::robust::median_in_place(&mut before).unwrap();
+    assert!((0.8..1.25).contains(&ratio), "step length ratio {ratio}");
+    // The next frame tracks on the new map.
+    assert_eq!(tracker.track(&frame(11)).status, TrackStatus::Ok);
+}
