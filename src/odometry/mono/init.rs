@@ -149,6 +149,7 @@ pub(super) fn rescale(map: &mut LocalMap, t_w1: &Isometry3<f64>, s: f64) {
     let t_1w = t_w1.inverse();
     for p in map.points.values_mut() {
         p.position = t_w1 * Point3::from((t_1w * p.position).coords * s);
+        p.distance *= s;
     }
     for kf in map.keyframes.iter_mut() {
         let mut t_1c = t_1w * kf.t_wc;

@@ -32,6 +32,10 @@ pub(super) struct MapPoint {
     pub descriptor: Descriptor,
     /// Pyramid level of that observation.
     pub level: u8,
+    /// Distance from that observation's camera centre to the point, map units: a camera at
+    /// another distance `d` sees it about `log(distance / d) / log(scale_factor)` levels
+    /// higher ([`predicted_level`]).
+    pub distance: f64,
     /// `(keyframe id, feature index)` of every observation.
     pub observations: Vec<(usize, u32)>,
     /// Frames in whose image the point was predicted.
@@ -143,6 +147,7 @@ impl LocalMap {
             position,
             descriptor: kf0.features.descriptors()[f0 as usize],
             level: kf0.features.levels()[f0 as usize],
+            distance: (position - kf0.centre()).norm(),
             observations: Vec::with_capacity(observed.len()),
             visible: 1,
             found: 1,
@@ -175,16 +180,18 @@ impl LocalMap {
     }
 
     /// Points observed by a window keyframe, as a feature list for matching (positions: the
-    /// points' predicted pixels under `t_cw`, NaN when not in front), their world positions
-    /// and the point id of each entry. Every point predicted inside the `width x height` image
-    /// counts as visible.
+    /// points' predicted pixels under `t_cw`, NaN when not in front; levels: the pyramid level
+    /// each is expected at from that camera, [`predicted_level`] with the ORB `scale_factor`),
+    /// their world positions and the point id of each entry. Every point predicted inside the
+    /// `width x height` image counts as visible.
     pub fn local_points(
         &mut self,
         camera: &Camera,
         t_cw: &Isometry3<f64>,
         size: (u32, u32),
+        scale_factor: f32,
     ) -> (Features, Vec<Option<Point3<f64>>>, Vec<PointId>) {
-        let (query, positions, ids) = self.project_points(camera, t_cw, size);
+        let (query, positions, ids) = self.project_points(camera, t_cw, size, scale_factor);
         for (id, x) in ids.iter().zip(query.xs()) {
             if let (true, Some(p)) = (x.is_finite(), self.points.get_mut(id)) {
                 p.visible += 1;
@@ -199,7 +206,9 @@ impl LocalMap {
         camera: &Camera,
         t_cw: &Isometry3<f64>,
         (width, height): (u32, u32),
+        scale_factor: f32,
     ) -> (Features, Vec<Option<Point3<f64>>>, Vec<PointId>) {
+        let centre = t_cw.inverse() * Point3::origin();
         let mut ids: Vec<PointId> = self.points.keys().copied().collect();
         ids.sort_unstable();
         let mut query = Features::default();
@@ -216,7 +225,7 @@ impl LocalMap {
             query.push(Feature {
                 x: u,
                 y: v,
-                level: p.level,
+                level: predicted_level(p, (p.position - centre).norm(), scale_factor),
                 scale: 1.0,
                 angle: 0.0,
                 response: 0.0,
@@ -410,7 +419,7 @@ impl LocalMap {
         let Some(p) = self.points.get(&id) else {
             return;
         };
-        let obs: Vec<(Descriptor, u8)> = p
+        let obs: Vec<(Descriptor, u8, f64)> = p
             .observations
             .iter()
             .filter_map(|&(kid, f)| {
@@ -418,16 +427,31 @@ impl LocalMap {
                 Some((
                     kf.features.descriptors()[f as usize],
                     kf.features.levels()[f as usize],
+                    (p.position - kf.centre()).norm(),
                 ))
             })
             .collect();
         let best = obs
             .iter()
-            .min_by_key(|(d, _)| obs.iter().map(|(o, _)| d.hamming(o)).sum::<u32>());
-        if let (Some(&(d, level)), Some(p)) = (best, self.points.get_mut(&id)) {
+            .min_by_key(|(d, ..)| obs.iter().map(|(o, ..)| d.hamming(o)).sum::<u32>());
+        if let (Some(&(d, level, distance)), Some(p)) = (best, self.points.get_mut(&id)) {
             p.descriptor = d;
             p.level = level;
+            p.distance = distance;
         }
+    }
+}
+
+/// The pyramid level at which a camera at distance `d` from point `p` sees it: the level of
+/// its descriptor's observation moved by `round(log(p.distance / d) / log(scale_factor))`
+/// (nearer is larger, so higher), within `0..=31` (ORB's level range).
+pub(super) fn predicted_level(p: &MapPoint, d: f64, scale_factor: f32) -> u8 {
+    let shift = (p.distance / d).ln() / f64::from(scale_factor).ln();
+    let level = f64::from(p.level) + shift;
+    if level.is_finite() {
+        level.round().clamp(0.0, 31.0) as u8
+    } else {
+        p.level
     }
 }
 

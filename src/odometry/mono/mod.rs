@@ -185,7 +185,9 @@ impl MonoTracker {
         predicted: Isometry3<f64>,
         start: Instant,
     ) -> FrameEstimate {
-        let (query, positions, ids) = map.local_points(&self.camera, &predicted.inverse(), size);
+        let scale_factor = self.cfg.orb.scale_factor;
+        let (query, positions, ids) =
+            map.local_points(&self.camera, &predicted.inverse(), size, scale_factor);
         let locate = |window_px: f32, prior: Isometry3<f64>| {
             let locator = PointLocator {
                 camera: &self.camera,
@@ -417,7 +419,9 @@ impl MonoTracker {
         predicted: Isometry3<f64>,
     ) -> Option<LocalMap> {
         let map = self.lost_map.as_ref()?;
-        let (query, positions, _) = map.project_points(&self.camera, &predicted.inverse(), size);
+        let scale_factor = self.cfg.orb.scale_factor;
+        let (query, positions, _) =
+            map.project_points(&self.camera, &predicted.inverse(), size, scale_factor);
         let locator = PointLocator {
             camera: &self.camera,
             matching: &self.cfg.matching,

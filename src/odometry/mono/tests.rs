@@ -6,6 +6,7 @@ use vofront_fixtures::driving::{DrivingSequence, FRAME_RATE};
 use vofront_fixtures::image2d::to_gray8;
 use vofront_geometry::lie::direction_angle_deg;
 
+use super::map::{predicted_level, MapPoint};
 use super::{MonoConfig, MonoTracker, State};
 use crate::dataset::Frame;
 use crate::odometry::{TrackStatus, Tracker};
@@ -54,4 +55,26 @@ fn a_failed_frame_restarts_from_a_window_keyframe_with_the_map_scale() {
     assert!((0.8..1.25).contains(&ratio), "step length ratio {ratio}");
     // The next frame tracks on the new map.
     assert_eq!(tracker.track(&frame(11)).status, TrackStatus::Ok);
+}
+
+/// A point whose descriptor was taken at level 2 from 10 map units is expected two levels up
+/// from 10 / 1.2^2 (it looks 1.44 times larger), one level down from 12, and within ORB's
+/// level range from far away or very near.
+#[test]
+fn the_expected_level_follows_the_distance_to_the_point() {
+    let point = MapPoint {
+        position: nalgebra::Point3::origin(),
+        descriptor: vofront_features::Descriptor([0; 4]),
+        level: 2,
+        distance: 10.0,
+        observations: Vec::new(),
+        visible: 1,
+        found: 1,
+    };
+    assert_eq!(predicted_level(&point, 10.0, 1.2), 2);
+    assert_eq!(predicted_level(&point, 10.0 / 1.44, 1.2), 4);
+    assert_eq!(predicted_level(&point, 12.0, 1.2), 1);
+    assert_eq!(predicted_level(&point, 1e6, 1.2), 0);
+    assert_eq!(predicted_level(&point, 1e-9, 1.2), 31);
+    assert_eq!(predicted_level(&point, 0.0, 1.2), 2);
 }
