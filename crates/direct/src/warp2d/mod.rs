@@ -26,7 +26,7 @@ use crate::plane::{Bilinear, Gradients, Plane, Pyramid};
 
 mod select;
 
-use select::RefPixels;
+use select::{maps_inside, RefPixels};
 
 /// Smallest side of the coarsest pyramid level, pixels.
 const MIN_LEVEL_SIDE: usize = 16;
@@ -458,8 +458,12 @@ pub(crate) fn align_2d<const M: usize>(
     let mut last = None;
     for level in (0..levels).rev() {
         let (p1, p2) = (&pyr1.levels[level], &pyr2.levels[level]);
-        let mut reference = RefPixels::select(p1, cfg.gradient_threshold, level_budget(cfg, level));
-        reference.retain_inside(&state.h, p2.width(), p2.height(), LEVEL_MARGIN_PX);
+        let reference = RefPixels::select(
+            p1,
+            cfg.gradient_threshold,
+            level_budget(cfg, level),
+            maps_inside(&state.h, p2.width(), p2.height(), LEVEL_MARGIN_PX),
+        );
         if reference.len() < min_pixels {
             if level == 0 {
                 return Err(DirectError::NoTexture {
