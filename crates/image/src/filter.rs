@@ -34,7 +34,7 @@ impl Image<f32> {
         for (y2, dst) in out.chunks_exact_mut(w2).enumerate() {
             // Vertical pass over whole rows (vectorizes), then the decimated horizontal pass.
             self.vertical_tap5(2 * y2, &mut column);
-            horizontal_tap5(&column, dst, 2);
+            horizontal_tap5::<2>(&column, dst);
         }
         Image::from_sized(w2, h2, out)
     }
@@ -60,7 +60,7 @@ impl Image<f32> {
         let mut column = vec![0f32; w];
         for (y, dst) in out.chunks_exact_mut(w).enumerate() {
             self.vertical_tap5(y, &mut column);
-            horizontal_tap5(&column, dst, 1);
+            horizontal_tap5::<1>(&column, dst);
         }
         Image::from_sized(w, h, out)
     }
@@ -98,25 +98,31 @@ fn tap5(a: f32, b: f32, c: f32, d: f32, e: f32) -> f32 {
     (a + e + 4.0 * (b + d) + 6.0 * c) * 0.0625
 }
 
-/// `dst[x] = tap5` of `src` around `step * x` (borders replicated); `step` 1 or 2.
-fn horizontal_tap5(src: &[f32], dst: &mut [f32], step: usize) {
+/// `dst[x] = tap5` of `src` around `STEP * x` (borders replicated); `STEP` is 1 ([`Image::blur`])
+/// or 2 ([`Image::pyr_down`]), a constant so that each pass compiles to its own loop.
+fn horizontal_tap5<const STEP: usize>(src: &[f32], dst: &mut [f32]) {
     let w = src.len();
-    let at = |x: isize| src[x.clamp(0, w as isize - 1) as usize];
-    // Outputs whose five taps are all inside need no clamping.
-    let first = 2usize.div_ceil(step);
-    let last = if w >= 5 { (w - 3) / step } else { 0 };
-    if step == 1 && w >= 5 {
-        for (o, t) in dst[2..w - 2].iter_mut().zip(src.windows(5)) {
+    // Outputs `first..end` have all five taps inside (`2 <= STEP x <= w - 3`): no clamping.
+    let (first, end) = if w >= 5 {
+        (2usize.div_ceil(STEP), (w - 3) / STEP + 1)
+    } else {
+        (0, 0)
+    };
+    let interior = dst[first..end].iter_mut();
+    if STEP == 1 {
+        for (o, t) in interior.zip(src.windows(5)) {
             *o = tap5(t[0], t[1], t[2], t[3], t[4]);
         }
-    } else if w >= 5 {
-        for (x, o) in dst.iter_mut().enumerate().take(last + 1).skip(first) {
-            let t = &src[step * x - 2..step * x + 3];
+    } else {
+        for (o, t) in interior.zip(src.windows(5).step_by(STEP)) {
             *o = tap5(t[0], t[1], t[2], t[3], t[4]);
         }
     }
-    for x in (0..dst.len()).filter(|&x| x < first || x > last || w < 5) {
-        let c = (step * x) as isize;
+    // The few outputs at the borders (all of them on a row narrower than five), taps clamped.
+    let at = |x: isize| src[x.clamp(0, w as isize - 1) as usize];
+    let n = dst.len();
+    for x in (0..first).chain(end..n) {
+        let c = (STEP * x) as isize;
         dst[x] = tap5(at(c - 2), at(c - 1), at(c), at(c + 1), at(c + 2));
     }
 }
@@ -168,6 +174,29 @@ mod tests {
         let d = p.pyr_down();
         assert_eq!(d.size(), (10, 8));
         assert!((d.at(4, 3) - p.at(8, 6)).abs() < 1e-4);
+    }
+
+    /// The interior loops and the clamped border outputs together give the clamped kernel at
+    /// every output, for rows narrower than the kernel too.
+    #[test]
+    fn horizontal_taps_are_the_clamped_kernel_at_every_width() {
+        for w in 1..12 {
+            let src: Vec<f32> = (0..w).map(|i| ((i * 37) % 11) as f32).collect();
+            let at = |x: isize| src[x.clamp(0, w as isize - 1) as usize];
+            let kernel = |c: isize| tap5(at(c - 2), at(c - 1), at(c), at(c + 1), at(c + 2));
+            let mut full = vec![f32::NAN; w];
+            horizontal_tap5::<1>(&src, &mut full);
+            let mut half = vec![f32::NAN; w.div_ceil(2)];
+            horizontal_tap5::<2>(&src, &mut half);
+            assert!(full
+                .iter()
+                .enumerate()
+                .all(|(x, &v)| v == kernel(x as isize)));
+            assert!(half
+                .iter()
+                .enumerate()
+                .all(|(x, &v)| v == kernel(2 * x as isize)));
+        }
     }
 
     #[test]

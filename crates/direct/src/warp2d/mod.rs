@@ -11,8 +11,10 @@
 //! Jacobian at `delta = 0` uses the gradient of the *reference*, `d r / d delta =
 //! a grad I1(x) dW/d delta (x)` (valid at convergence, where `I2 o W = a I1 + b`), computed once
 //! per level; `d r / d a = -I1(x)`, `d r / d b = -1`. For translation a forward-additive variant
-//! samples `grad I2` at `x + d` instead (exact Jacobian, three samples per pixel). Steps are
-//! damped Gauss-Newton on Huber (by default) IRLS weights (module `lm`).
+//! samples `grad I2` at `x + d` instead (exact Jacobian; value and gradient interpolated
+//! together from the 4x4 neighbourhood in `I2`, no gradient planes, so the pixels within one
+//! pixel of the border are invalid). Steps are damped Gauss-Newton on Huber (by default) IRLS
+//! weights (module `lm`).
 //!
 //! Across pyramid levels the warp is rescaled, `H_l = D H_0 D^-1`, `D = diag(2^-l, 2^-l, 1)`.
 
@@ -22,11 +24,11 @@ use vofront_robust::{Convergence, Loss, NormalEquations};
 
 use crate::error::DirectError;
 use crate::lm::{accumulate, run_level, LevelProblem, LmSettings, CHUNK, SERIAL_MAX};
-use crate::plane::{Bilinear, Gradients, Plane, Pyramid};
+use crate::plane::{interpolate_with_gradient, Bilinear, Plane, Pyramid};
 
 mod select;
 
-use select::RefPixels;
+use select::{maps_inside, RefPixels};
 
 /// Smallest side of the coarsest pyramid level, pixels.
 const MIN_LEVEL_SIDE: usize = 16;
@@ -228,8 +230,9 @@ struct Level2d<'a> {
     kind: WarpKind,
     reference: &'a RefPixels,
     target: &'a Plane,
-    /// Gradients of the target, for the forward-additive translation.
-    target_grad: Option<&'a Gradients>,
+    /// Forward-additive translation: the Jacobian from the target's gradients at the warped
+    /// pixels, interpolated from the target's values (no gradient planes).
+    forward: bool,
     residuals: Vec<f32>,
     /// Target gradients sampled at the warped pixels (forward-additive only).
     sampled_gx: Vec<f32>,
@@ -253,54 +256,53 @@ impl<const M: usize> LevelProblem<M> for Level2d<'_> {
         let warp = move |i: usize| taps.at(r.x[i], r.y[i]);
         self.residuals.resize(n, f32::NAN);
         let serial = n <= SERIAL_MAX;
-        match self.target_grad {
-            None => {
-                // Fills the chunk of residuals starting at reference pixel `start`.
-                let fill = |start: usize, out: &mut [f32]| {
-                    for (i, o) in (start..).zip(out.iter_mut()) {
-                        *o = warp(i).map_or(f32::NAN, |t| t.apply(img) - a * r.value[i] - b);
-                    }
-                };
-                if serial {
-                    fill(0, &mut self.residuals);
-                } else {
-                    self.residuals
-                        .par_chunks_mut(CHUNK)
-                        .enumerate()
-                        .for_each(|(c, out)| fill(c * CHUNK, out));
+        if !self.forward {
+            // Fills the chunk of residuals starting at reference pixel `start`.
+            let fill = |start: usize, out: &mut [f32]| {
+                for (i, o) in (start..).zip(out.iter_mut()) {
+                    *o = warp(i).map_or(f32::NAN, |t| t.apply(img) - a * r.value[i] - b);
                 }
+            };
+            if serial {
+                fill(0, &mut self.residuals);
+            } else {
+                self.residuals
+                    .par_chunks_mut(CHUNK)
+                    .enumerate()
+                    .for_each(|(c, out)| fill(c * CHUNK, out));
             }
-            Some(grad) => {
-                self.sampled_gx.resize(n, 0.0);
-                self.sampled_gy.resize(n, 0.0);
-                // Fills residuals and sampled target gradients from reference pixel `start`.
-                let fill = |start: usize, out: &mut [f32], ogx: &mut [f32], ogy: &mut [f32]| {
-                    for (k, i) in (start..start + out.len()).enumerate() {
-                        out[k] = match warp(i) {
-                            Some(t) => {
-                                ogx[k] = t.apply(grad.gx.data());
-                                ogy[k] = t.apply(grad.gy.data());
-                                t.apply(img) - a * r.value[i] - b
-                            }
-                            None => f32::NAN,
-                        };
-                    }
-                };
-                if serial {
-                    fill(
-                        0,
-                        &mut self.residuals,
-                        &mut self.sampled_gx,
-                        &mut self.sampled_gy,
-                    );
-                } else {
-                    self.residuals
-                        .par_chunks_mut(CHUNK)
-                        .zip(self.sampled_gx.par_chunks_mut(CHUNK))
-                        .zip(self.sampled_gy.par_chunks_mut(CHUNK))
-                        .enumerate()
-                        .for_each(|(c, ((out, ogx), ogy))| fill(c * CHUNK, out, ogx, ogy));
+        } else {
+            let (_, _, fx, fy) = taps.shift.expect("forward-additive is a translation");
+            self.sampled_gx.resize(n, 0.0);
+            self.sampled_gy.resize(n, 0.0);
+            // Fills residuals and sampled target gradients from reference pixel `start`; the
+            // pixels whose taps touch the border, where the gradients are undefined, are invalid.
+            let fill = |start: usize, out: &mut [f32], ogx: &mut [f32], ogy: &mut [f32]| {
+                for (k, i) in (start..start + out.len()).enumerate() {
+                    out[k] = match taps.top_left(r.x[i], r.y[i], 1) {
+                        Some((x0, y0)) => {
+                            let [value, gx, gy] = interpolate_with_gradient(img, w, x0, y0, fx, fy);
+                            (ogx[k], ogy[k]) = (gx, gy);
+                            value - a * r.value[i] - b
+                        }
+                        None => f32::NAN,
+                    };
                 }
+            };
+            if serial {
+                fill(
+                    0,
+                    &mut self.residuals,
+                    &mut self.sampled_gx,
+                    &mut self.sampled_gy,
+                );
+            } else {
+                self.residuals
+                    .par_chunks_mut(CHUNK)
+                    .zip(self.sampled_gx.par_chunks_mut(CHUNK))
+                    .zip(self.sampled_gy.par_chunks_mut(CHUNK))
+                    .enumerate()
+                    .for_each(|(c, ((out, ogx), ogy))| fill(c * CHUNK, out, ogx, ogy));
             }
         }
         self.residuals.iter().filter(|v| !v.is_nan()).count()
@@ -312,7 +314,7 @@ impl<const M: usize> LevelProblem<M> for Level2d<'_> {
 
     fn normal_equations(&self, loss: &Loss, scale: f32) -> NormalEquations<M> {
         let r = self.reference;
-        let forward = self.target_grad.is_some();
+        let forward = self.forward;
         accumulate(r.len(), loss, scale, SERIAL_MAX, |i| {
             let res = self.residuals[i];
             if res.is_nan() {
@@ -362,15 +364,24 @@ impl WarpTaps {
         }
     }
 
+    /// For a translation `t`: the top-left tap `(x0, y0)` of `(x, y) + t`; `None` unless the
+    /// four taps are at least `border` pixels inside the plane (and for the other warps).
+    #[inline(always)]
+    fn top_left(&self, x: f32, y: f32, border: isize) -> Option<(usize, usize)> {
+        let (ox, oy, _, _) = self.shift?;
+        let (xi, yi) = (x as isize + ox, y as isize + oy);
+        let (w, h) = (self.w as isize, self.h_px as isize);
+        let inside = xi >= border && yi >= border && xi + 1 + border < w && yi + 1 + border < h;
+        inside.then_some((xi as usize, yi as usize))
+    }
+
     /// Taps at `H (x, y, 1)`; `None` outside the plane.
     #[inline(always)]
     fn at(&self, x: f32, y: f32) -> Option<Bilinear> {
         let (w, h_px, h) = (self.w, self.h_px, &self.h);
-        if let Some((ox, oy, fx, fy)) = self.shift {
-            let (xi, yi) = (x as isize + ox, y as isize + oy);
-            let inside = xi >= 0 && yi >= 0 && xi + 1 < w as isize && yi + 1 < h_px as isize;
-            return inside.then(|| Bilinear {
-                index: yi as usize * w + xi as usize,
+        if let Some((_, _, fx, fy)) = self.shift {
+            return self.top_left(x, y, 0).map(|(x0, y0)| Bilinear {
+                index: y0 * w + x0,
                 stride: w,
                 fx,
                 fy,
@@ -409,6 +420,7 @@ pub(crate) fn align_2d<const M: usize>(
     forward_additive: bool,
 ) -> Result<WarpResult, DirectError> {
     debug_assert_eq!(M, kind.parameters() + 2);
+    debug_assert!(!forward_additive || kind == WarpKind::Translation);
     img1.check_same_size(img2)?;
     img1.check_min_size(MIN_LEVEL_SIDE)?;
     if cfg.levels == 0
@@ -458,8 +470,12 @@ pub(crate) fn align_2d<const M: usize>(
     let mut last = None;
     for level in (0..levels).rev() {
         let (p1, p2) = (&pyr1.levels[level], &pyr2.levels[level]);
-        let mut reference = RefPixels::select(p1, cfg.gradient_threshold, level_budget(cfg, level));
-        reference.retain_inside(&state.h, p2.width(), p2.height(), LEVEL_MARGIN_PX);
+        let reference = RefPixels::select(
+            p1,
+            cfg.gradient_threshold,
+            level_budget(cfg, level),
+            maps_inside(&state.h, p2.width(), p2.height(), LEVEL_MARGIN_PX),
+        );
         if reference.len() < min_pixels {
             if level == 0 {
                 return Err(DirectError::NoTexture {
@@ -470,12 +486,11 @@ pub(crate) fn align_2d<const M: usize>(
             state.h = rescale(&state.h, 2.0);
             continue;
         }
-        let target_grad = forward_additive.then(|| p2.gradients());
         let mut problem = Level2d {
             kind,
             reference: &reference,
             target: p2,
-            target_grad: target_grad.as_ref(),
+            forward: forward_additive,
             residuals: Vec::new(),
             sampled_gx: Vec::new(),
             sampled_gy: Vec::new(),

@@ -17,10 +17,16 @@ pub(super) struct RefPixels {
 }
 
 impl RefPixels {
-    /// Interior pixels of `img` with `gx^2 + gy^2 >= threshold^2`; when more than
-    /// `max_pixels` qualify, only those with the largest gradients (about `max_pixels`: the
-    /// threshold is raised to the matching quantile of every 8th pixel's squared gradient).
-    pub(super) fn select(img: &Plane, threshold: f32, max_pixels: usize) -> Self {
+    /// Interior pixels `(x, y)` of `img` with `gx^2 + gy^2 >= threshold^2` and `keep(x, y)`;
+    /// when more than `max_pixels` qualify by their gradient, only those with the largest
+    /// gradients (about `max_pixels`: the threshold is raised to the matching quantile of every
+    /// 8th pixel's squared gradient), before `keep` is asked.
+    pub(super) fn select(
+        img: &Plane,
+        threshold: f32,
+        max_pixels: usize,
+        keep: impl Fn(f32, f32) -> bool,
+    ) -> Self {
         let (w, h) = img.size();
         let mut out = RefPixels::default();
         if w < 3 || h < 3 {
@@ -51,11 +57,14 @@ impl RefPixels {
                 t2 = t2.max(*cut);
             }
         }
+        let d = img.data();
         for (i, _) in g2.iter().enumerate().filter(|(_, &g)| g >= t2) {
-            let (x, y) = (i % w, i / w);
-            let d = img.data();
-            out.x.push(x as f32);
-            out.y.push(y as f32);
+            let (x, y) = ((i % w) as f32, (i / w) as f32);
+            if !keep(x, y) {
+                continue;
+            }
+            out.x.push(x);
+            out.y.push(y);
             out.value.push(d[i]);
             out.gx.push(0.5 * (d[i + 1] - d[i - 1]));
             out.gy.push(0.5 * (d[i + w] - d[i - w]));
@@ -63,44 +72,26 @@ impl RefPixels {
         out
     }
 
-    /// Keeps the pixels that `h` maps at least `margin` pixels inside the bilinear footprint
-    /// of a `width x height` target (`0 <= u < width - 1`, the same for `v`), so that the set
-    /// of residuals stays the same while a level's steps move the warp by less than `margin`.
-    pub(super) fn retain_inside(
-        &mut self,
-        h: &Matrix3<f64>,
-        width: usize,
-        height: usize,
-        margin: f64,
-    ) {
-        let inside = |x: f32, y: f32| {
-            let p = h * Vector3::new(f64::from(x), f64::from(y), 1.0);
-            let (u, v) = (p.x / p.z, p.y / p.z);
-            u >= margin
-                && v >= margin
-                && u < width as f64 - 1.0 - margin
-                && v < height as f64 - 1.0 - margin
-        };
-        let keep: Vec<bool> = self
-            .x
-            .iter()
-            .zip(&self.y)
-            .map(|(&x, &y)| inside(x, y))
-            .collect();
-        for column in [
-            &mut self.x,
-            &mut self.y,
-            &mut self.value,
-            &mut self.gx,
-            &mut self.gy,
-        ] {
-            let mut k = keep.iter();
-            column.retain(|_| *k.next().expect("one flag per pixel"));
-        }
-    }
-
     pub(super) fn len(&self) -> usize {
         self.x.len()
+    }
+}
+
+/// Whether `h` maps pixel `(x, y)` at least `margin` pixels inside the bilinear footprint of a
+/// `width x height` target (`0 <= u < width - 1`, the same for `v`): the `keep` of
+/// [`RefPixels::select`] that fixes a level's pixels, so that the set of residuals stays the
+/// same while the level's steps move the warp by less than `margin`.
+pub(super) fn maps_inside(
+    h: &Matrix3<f64>,
+    width: usize,
+    height: usize,
+    margin: f64,
+) -> impl Fn(f32, f32) -> bool + '_ {
+    let (u_end, v_end) = (width as f64 - 1.0 - margin, height as f64 - 1.0 - margin);
+    move |x, y| {
+        let p = h * Vector3::new(f64::from(x), f64::from(y), 1.0);
+        let (u, v) = (p.x / p.z, p.y / p.z);
+        u >= margin && v >= margin && u < u_end && v < v_end
     }
 }
 
@@ -108,27 +99,34 @@ impl RefPixels {
 mod tests {
     use super::*;
 
+    /// The pixels of a selection as `(x, y, value, gx, gy)`.
+    fn rows(px: &RefPixels) -> Vec<(f32, f32, f32, f32, f32)> {
+        (0..px.len())
+            .map(|i| (px.x[i], px.y[i], px.value[i], px.gx[i], px.gy[i]))
+            .collect()
+    }
+
     /// A shift by 3.5 px to the right keeps the pixels with `x + 3.5` at least 2 px inside
     /// the 20 px wide footprint (`x + 3.5 < 17`, i.e. `x <= 13`), every row alike, with their
     /// values and gradients.
     #[test]
-    fn retain_inside_keeps_the_pixels_mapped_inside_the_margin() {
+    fn maps_inside_keeps_the_pixels_mapped_inside_the_margin() {
         let data = (0..20 * 10).map(|i| ((i * 37) % 101) as f32).collect();
         let img = Plane::new(20, 10, data).unwrap();
-        let mut px = RefPixels::select(&img, 0.0, 0);
-        let all = px.len();
-        let before: Vec<(f32, f32, f32)> =
-            (0..all).map(|i| (px.x[i], px.y[i], px.value[i])).collect();
+        let all = rows(&RefPixels::select(&img, 0.0, 0, |_, _| true));
         let shift = Matrix3::new(1.0, 0.0, 3.5, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0);
-        px.retain_inside(&shift, 20, 10, 2.0);
-        let expected: Vec<(f32, f32, f32)> = before
-            .into_iter()
-            .filter(|&(x, y, _)| x <= 13.0 && (2.0..=6.0).contains(&y))
-            .collect();
-        let kept: Vec<(f32, f32, f32)> = (0..px.len())
-            .map(|i| (px.x[i], px.y[i], px.value[i]))
+        let kept = rows(&RefPixels::select(
+            &img,
+            0.0,
+            0,
+            maps_inside(&shift, 20, 10, 2.0),
+        ));
+        let expected: Vec<_> = all
+            .iter()
+            .copied()
+            .filter(|&(x, y, ..)| x <= 13.0 && (2.0..=6.0).contains(&y))
             .collect();
         assert_eq!(kept, expected);
-        assert!(px.gx.len() == px.len() && px.gy.len() == px.len() && px.len() < all);
+        assert!(kept.len() < all.len());
     }
 }
