@@ -1,8 +1,9 @@
 //! The monocular tracker on the rendered driving sequence (10 Hz, 1 m per frame, a straight
 //! stretch then a 90 degree right turn between facades and parked boxes): every frame after
-//! the initialisation is tracked and the Sim(3)-aligned trajectory stays within 1% of the
-//! path length (measured: 0.60% with the local bundle adjustment, 1.05% before it; issue 13
-//! asks for 0.5%). After a segment break the new map keeps the speed of the old one.
+//! the initialisation is tracked and the Sim(3)-aligned trajectory stays within 0.5% of the
+//! path length, issue 13's target (measured: 0.31% with keypoint-level noise scales and level
+//! prediction, 0.60% before them, 1.05% before the local bundle adjustment). After a segment
+//! break the new map keeps the speed of the old one.
 
 use vofront::dataset::Frame;
 use vofront::eval::{ate, rpe, Alignment, EvalConfig};
@@ -18,7 +19,7 @@ const FRAMES: usize = 44;
 /// Frames the tracker may wait for parallax before the map exists.
 const MAX_INIT_FRAMES: usize = 4;
 /// ATE bound, percent of the path length.
-const MAX_ATE_PERCENT: f64 = 1.0;
+const MAX_ATE_PERCENT: f64 = 0.5;
 
 #[test]
 fn mono_tracker_follows_the_rendered_drive() {

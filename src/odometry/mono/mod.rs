@@ -7,10 +7,12 @@
 //!    the current frame is replaced by it.
 //! 2. Tracking: every point of the local map (`map`: the points observed by the window of
 //!    recent keyframes) is projected with the constant-velocity prediction `pi(K T_cw' P_w)`
-//!    and matched to the current features around it; PnP RANSAC with Huber refinement
-//!    (motion-only) gives `T_cw`, `T_wc = T_cw^-1`. The points are then matched again in a
-//!    narrow window (`relocate_window_px`) around that pose and PnP repeated; the pose with
-//!    more inliers is kept.
+//!    and matched to the current features around it, among those of the pyramid level it is
+//!    expected at from the predicted distance; PnP RANSAC with Huber refinement (motion-only;
+//!    each residual divided by its keypoint's level scale `1.2^k`) gives `T_cw`,
+//!    `T_wc = T_cw^-1`. The points are then matched again in a narrow window
+//!    (`relocate_window_px`) around that pose and PnP repeated; the pose with more inliers is
+//!    kept.
 //! 3. Keyframes are decided without metric units: a new one is taken when the median parallax
 //!    of the tracked points between the last keyframe's and the current camera centres,
 //!    `angle(P - C_kf, P - C_cur)`, reaches `keyframe_parallax_deg`, when the tracked ratio
@@ -21,14 +23,18 @@
 //!    with the error. A keyframe adds observations, triangulates new points against its
 //!    neighbours, refines the structure, culls points and runs the local bundle adjustment
 //!    (`adjust`).
-//! 4. When PnP fails the frame is lost; the motion model coasts through lost frames (up to
-//!    `MAX_COAST_FRAMES`). Each later frame is first located against the lost map from that
-//!    prediction (wide window, `min_keyframe_inliers` inliers): after a short fault the map is
-//!    tracked again with its scale. Meanwhile initialisation starts again (from that frame if
-//!    it has enough features), placed at the motion model's pose, with the new map's scale
-//!    joined to the lost one where they overlap; where they do not (a segment break, said in the
-//!    reinitialised frame's message), the new baseline is the motion model's median step
-//!    length times the frames it spans, so that the trajectory keeps its speed.
+//! 4. When PnP fails, the frame first tries to start a new map at once with the newest window
+//!    keyframe that initialises with it (enough parallax and points): the map is placed at
+//!    that keyframe's pose, its scale joined to the lost map's, and the frame is tracked
+//!    (`reinitialised`). Otherwise the frame is lost; the motion model coasts through lost
+//!    frames (up to `MAX_COAST_FRAMES`). Each later frame is first located against the lost
+//!    map from that prediction (wide window, `min_keyframe_inliers` inliers): after a short
+//!    fault the map is tracked again with its scale. Meanwhile initialisation starts again
+//!    (from that frame if it has enough features), placed at the motion model's pose, with the
+//!    new map's scale joined to the lost one where they overlap; where they do not (a segment
+//!    break, said in the reinitialised frame's message), the new baseline is the motion
+//!    model's median step length times the frames it spans, so that the trajectory keeps its
+//!    speed.
 
 mod adjust;
 mod config;
