@@ -15,8 +15,8 @@ use vofront_features::{match_descriptors, Features, MatchConfig};
 use vofront_geometry::{estimate_relative_pose, Camera, RelativePoseConfig};
 
 use super::map::LocalMap;
-use crate::odometry::{feature_pixel, FrameQuality};
-use crate::robust::Quality;
+use crate::odometry::{feature_pixel, reasons_text, FrameQuality};
+use crate::robust::{Quality, Verdict};
 
 /// Settings of [`initialise`].
 pub(super) struct InitRules<'a> {
@@ -76,6 +76,13 @@ pub(super) fn initialise(
         .collect();
     let rel = estimate_relative_pose(&x1, &x2, rules.camera, rules.relative)
         .map_err(|e| give_up(format!("initialising: {e}")))?;
+    // A two-view pose judged failed (no support beyond chance, degenerate) makes no map.
+    if rel.quality.verdict == Verdict::Failed {
+        return Err(give_up(format!(
+            "initialising: two-view pose failed: {}",
+            reasons_text(&rel.quality)
+        )));
+    }
     if rel.low_parallax || rel.parallax_deg < rules.min_parallax_deg {
         return Err(wait(format!(
             "initialising: parallax {:.2} deg",

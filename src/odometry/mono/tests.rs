@@ -6,6 +6,7 @@ use vofront_fixtures::driving::{DrivingSequence, FRAME_RATE};
 use vofront_fixtures::image2d::to_gray8;
 use vofront_geometry::lie::direction_angle_deg;
 
+use super::init::initialise;
 use super::map::{predicted_level, MapPoint};
 use super::{MonoConfig, MonoTracker, State};
 use crate::dataset::Frame;
@@ -77,4 +78,50 @@ fn the_expected_level_follows_the_distance_to_the_point() {
     assert_eq!(predicted_level(&point, 1e6, 1.2), 0);
     assert_eq!(predicted_level(&point, 1e-9, 1.2), 31);
     assert_eq!(predicted_level(&point, 0.0, 1.2), 2);
+}
+
+/// 300 features whose descriptors match one to one between the frames but whose positions are
+/// unrelated (random matches): no two-view pose is trusted, so no map is made, and the
+/// reference is given up rather than waited on.
+#[test]
+fn random_matches_make_no_map() {
+    let drive = DrivingSequence::new(3, 1);
+    let (w, h) = (drive.size.0 as f32, drive.size.1 as f32);
+    // A linear congruential generator: uniform in [0, 1).
+    let mut state = 5u64;
+    let mut uniform = move || {
+        state = state
+            .wrapping_mul(6_364_136_223_846_793_005)
+            .wrapping_add(1_442_695_040_888_963_407);
+        (state >> 40) as f32 / (1u64 << 24) as f32
+    };
+    let mut features = || {
+        let n = 300;
+        let xs = (0..n).map(|_| uniform() * w).collect();
+        let ys = (0..n).map(|_| uniform() * h).collect();
+        let descriptors = (0..n as u64)
+            .map(|j| {
+                vofront_features::Descriptor([j.wrapping_mul(0x9e37_79b9_7f4a_7c15), j, !j, j << 7])
+            })
+            .collect();
+        vofront_features::Features::new(
+            xs,
+            ys,
+            vec![0; n],
+            vec![1.0; n],
+            vec![0.0; n],
+            vec![1.0; n],
+            descriptors,
+        )
+        .unwrap()
+    };
+    let (reference, current) = (features(), features());
+    let cfg = MonoConfig::default();
+    let tracker = MonoTracker::new(drive.camera, cfg).unwrap();
+    let rules = tracker.init_rules();
+    let t_w1 = nalgebra::Isometry3::identity();
+    match initialise(&rules, &reference, &t_w1, &current, (0, 1)) {
+        Ok((map, ..)) => panic!("a map of {} points from random matches", map.points.len()),
+        Err(failure) => assert!(!failure.keep_reference, "{}", failure.why),
+    }
 }
