@@ -38,21 +38,7 @@ pub fn good_features_to_track(
     if best <= 0.0 || !best.is_finite() {
         return Vec::new();
     }
-    let threshold = quality.max(0.0) * best;
-    let mut candidates = Vec::new();
-    for y in 2..h - 2 {
-        for x in 2..w - 2 {
-            let v = response[y * w + x];
-            if v < threshold || v <= 0.0 {
-                continue;
-            }
-            let is_max =
-                (y - 1..=y + 1).all(|yy| (x - 1..=x + 1).all(|xx| response[yy * w + xx] <= v));
-            if is_max {
-                candidates.push((v, x, y));
-            }
-        }
-    }
+    let mut candidates = local_maxima(&response, w, quality.max(0.0) * best);
     candidates.sort_by(|a, b| b.0.total_cmp(&a.0));
     let cell = min_distance.max(1.0);
     let (gw, gh) = (
@@ -82,6 +68,33 @@ pub fn good_features_to_track(
         }
     }
     out
+}
+
+/// `(response, x, y)` of the pixels at least two from the border whose response is positive,
+/// at least `threshold` and a 3x3 local maximum (ties kept), in row-major order.
+///
+/// Each row walks the 3-wide windows of itself and of its two neighbours (without their first
+/// and last pixels) in step, so that the 3x3 test needs no index arithmetic or bounds checks.
+fn local_maxima(response: &[f32], w: usize, threshold: f32) -> Vec<(f32, usize, usize)> {
+    let h = response.len() / w;
+    let mut candidates = Vec::new();
+    for y in 2..h - 2 {
+        let [up, row, down] =
+            [y - 1, y, y + 1].map(|r| response[r * w + 1..(r + 1) * w - 1].windows(3));
+        for (x, ((u, m), d)) in (2..).zip(up.zip(row).zip(down)) {
+            let v = m[1];
+            if v < threshold || v <= 0.0 {
+                continue;
+            }
+            if [u, m, d]
+                .iter()
+                .all(|n| n[0] <= v && n[1] <= v && n[2] <= v)
+            {
+                candidates.push((v, x, y));
+            }
+        }
+    }
+    candidates
 }
 
 /// `lambda_min` of the 3x3-block structure tensor at every pixel (0 on the border).
