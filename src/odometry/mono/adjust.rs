@@ -103,11 +103,12 @@ impl LocalMap {
 #[cfg(test)]
 mod tests {
     use nalgebra::{Isometry3, Point3, Vector3};
-    use vofront_features::{Descriptor, Features};
+    use vofront_features::Descriptor;
     use vofront_geometry::bundle::BundleConfig;
     use vofront_geometry::{Camera, Pinhole};
 
     use super::super::map::LocalMap;
+    use super::super::tests::level0_features;
 
     /// Four keyframes 0.3 m apart along x looking down z at 60 points 4-8 m away; every
     /// keyframe sees every point (feature `j` is point `j`) with up to 0.3 px of
@@ -142,16 +143,7 @@ mod tests {
             }
             let n = xs.len();
             let descriptors = (0..n as u64).map(|j| Descriptor([j, 0, 0, 0])).collect();
-            let features = Features::new(
-                xs,
-                ys,
-                vec![0; n],
-                vec![1.0; n],
-                vec![0.0; n],
-                vec![1.0; n],
-                descriptors,
-            )
-            .unwrap();
+            let features = level0_features(xs, ys, descriptors).unwrap();
             map.push_keyframe(*t_wc, features, k);
         }
         for (j, p) in points.iter().enumerate() {

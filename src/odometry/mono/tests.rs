@@ -1,7 +1,9 @@
-//! The tracker's recovery paths, driven on the rendered street drive.
+//! The tracker's recovery paths, driven on the rendered street drive, and its map rules.
 
+use std::error::Error;
 use std::time::Instant;
 
+use vofront_features::{Descriptor, Features};
 use vofront_fixtures::driving::{DrivingSequence, FRAME_RATE};
 use vofront_fixtures::image2d::to_gray8;
 use vofront_geometry::lie::direction_angle_deg;
@@ -12,29 +14,48 @@ use super::{MonoConfig, MonoTracker, State};
 use crate::dataset::Frame;
 use crate::odometry::{TrackStatus, Tracker};
 
+type TestResult = Result<(), Box<dyn Error>>;
+
+/// Finest-level keypoints at `(xs, ys)` with the given descriptors (scale 1, no angle).
+pub(super) fn level0_features(
+    xs: Vec<f32>,
+    ys: Vec<f32>,
+    descriptors: Vec<Descriptor>,
+) -> Result<Features, vofront_features::FeatureError> {
+    let n = xs.len();
+    Features::new(
+        xs,
+        ys,
+        vec![0; n],
+        vec![1.0; n],
+        vec![0.0; n],
+        vec![1.0; n],
+        descriptors,
+    )
+}
+
 /// When tracking against the map fails, the frame is not lost: a new map is made at once
 /// from it and a keyframe of the window, placed at that keyframe's pose with the old map's
 /// scale, and the next frame is tracked on it.
 #[test]
-fn a_failed_frame_restarts_from_a_window_keyframe_with_the_map_scale() {
+fn a_failed_frame_restarts_from_a_window_keyframe_with_the_map_scale() -> TestResult {
     let drive = DrivingSequence::new(11, 12);
     let frame = |i: usize| {
-        Frame::new(
-            i as f64 / FRAME_RATE,
-            to_gray8(&drive.render(i).image),
-            None,
-        )
-        .unwrap()
+        let image = to_gray8(&drive.render(i).image);
+        Frame::new(i as f64 / FRAME_RATE, image, None)
     };
-    let mut tracker = MonoTracker::new(drive.camera, MonoConfig::default()).unwrap();
-    let poses: Vec<_> = (0..10).map(|i| tracker.track(&frame(i)).pose_wc).collect();
+    let mut tracker = MonoTracker::new(drive.camera, MonoConfig::default())?;
+    let mut poses = Vec::new();
+    for i in 0..10 {
+        poses.push(tracker.track(&frame(i)?).pose_wc);
+    }
     let State::Tracking { map, .. } = std::mem::replace(&mut tracker.state, State::Empty) else {
-        panic!("not tracking after ten frames");
+        return Err("not tracking after ten frames".into());
     };
     // Frame 10, as if its tracking had failed.
-    let current = tracker.orb.detect_and_describe(frame(10).image()).unwrap();
+    let current = tracker.orb.detect_and_describe(frame(10)?.image())?;
     let Ok(restart) = tracker.restart_from_window(map, &current, Instant::now()) else {
-        panic!("no window keyframe initialised with frame 10");
+        return Err("no window keyframe initialised with frame 10".into());
     };
     tracker.frame += 1;
     assert_eq!(restart.status, TrackStatus::Reinitialised);
@@ -42,8 +63,8 @@ fn a_failed_frame_restarts_from_a_window_keyframe_with_the_map_scale() {
     assert!(message.contains("joined to the lost one"), "{message}");
     // The step 9 -> 10 has the direction of the true one (the tracked steps before it are 1-7
     // degrees off: 0.3 map units between frames a few centimetres apart in error) and the
-    // length of the map's earlier steps (the scale is kept).
-    // The tracker's world is the first camera's frame.
+    // length of the map's earlier steps (the scale is kept). The tracker's world is the first
+    // camera's frame.
     let true_wc = |i: usize| drive.poses_wc[0].inverse() * drive.poses_wc[i];
     let step = restart.pose_wc.translation.vector - poses[9].translation.vector;
     let truth = true_wc(10).translation.vector - true_wc(9).translation.vector;
@@ -52,10 +73,12 @@ fn a_failed_frame_restarts_from_a_window_keyframe_with_the_map_scale() {
     let mut before: Vec<f64> = (5..10)
         .map(|i| (poses[i].translation.vector - poses[i - 1].translation.vector).norm())
         .collect();
-    let ratio = step.norm() / crate::robust::median_in_place(&mut before).unwrap();
+    let median = crate::robust::median_in_place(&mut before).ok_or("no steps")?;
+    let ratio = step.norm() / median;
     assert!((0.8..1.25).contains(&ratio), "step length ratio {ratio}");
     // The next frame tracks on the new map.
-    assert_eq!(tracker.track(&frame(11)).status, TrackStatus::Ok);
+    assert_eq!(tracker.track(&frame(11)?).status, TrackStatus::Ok);
+    Ok(())
 }
 
 /// A point whose descriptor was taken at level 2 from 10 map units is expected two levels up
@@ -65,7 +88,7 @@ fn a_failed_frame_restarts_from_a_window_keyframe_with_the_map_scale() {
 fn the_expected_level_follows_the_distance_to_the_point() {
     let point = MapPoint {
         position: nalgebra::Point3::origin(),
-        descriptor: vofront_features::Descriptor([0; 4]),
+        descriptor: Descriptor([0; 4]),
         level: 2,
         distance: 10.0,
         observations: Vec::new(),
@@ -84,7 +107,7 @@ fn the_expected_level_follows_the_distance_to_the_point() {
 /// unrelated (random matches): no two-view pose is trusted, so no map is made, and the
 /// reference is given up rather than waited on.
 #[test]
-fn random_matches_make_no_map() {
+fn random_matches_make_no_map() -> TestResult {
     let drive = DrivingSequence::new(3, 1);
     let (w, h) = (drive.size.0 as f32, drive.size.1 as f32);
     // A linear congruential generator: uniform in [0, 1).
@@ -100,28 +123,21 @@ fn random_matches_make_no_map() {
         let xs = (0..n).map(|_| uniform() * w).collect();
         let ys = (0..n).map(|_| uniform() * h).collect();
         let descriptors = (0..n as u64)
-            .map(|j| {
-                vofront_features::Descriptor([j.wrapping_mul(0x9e37_79b9_7f4a_7c15), j, !j, j << 7])
-            })
+            .map(|j| Descriptor([j.wrapping_mul(0x9e37_79b9_7f4a_7c15), j, !j, j << 7]))
             .collect();
-        vofront_features::Features::new(
-            xs,
-            ys,
-            vec![0; n],
-            vec![1.0; n],
-            vec![0.0; n],
-            vec![1.0; n],
-            descriptors,
-        )
-        .unwrap()
+        level0_features(xs, ys, descriptors)
     };
-    let (reference, current) = (features(), features());
-    let cfg = MonoConfig::default();
-    let tracker = MonoTracker::new(drive.camera, cfg).unwrap();
+    let (reference, current) = (features()?, features()?);
+    let tracker = MonoTracker::new(drive.camera, MonoConfig::default())?;
     let rules = tracker.init_rules();
     let t_w1 = nalgebra::Isometry3::identity();
     match initialise(&rules, &reference, &t_w1, &current, (0, 1)) {
-        Ok((map, ..)) => panic!("a map of {} points from random matches", map.points.len()),
-        Err(failure) => assert!(!failure.keep_reference, "{}", failure.why),
+        Ok((map, ..)) => {
+            Err(format!("a map of {} points from random matches", map.points.len()).into())
+        }
+        Err(failure) => {
+            assert!(!failure.keep_reference, "{}", failure.why);
+            Ok(())
+        }
     }
 }
