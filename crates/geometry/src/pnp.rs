@@ -272,9 +272,12 @@ pub fn solve_pnp_ransac_with_sigmas(
     if sigmas.len() != pixels.len() {
         return Err(GeometryError::LengthMismatch(sigmas.len(), pixels.len()));
     }
-    if sigmas.iter().any(|s| !(s.is_finite() && *s > 0.0)) {
+    if sigmas.iter().any(|s| !s.is_finite()) {
+        return Err(GeometryError::NonFinite);
+    }
+    if sigmas.iter().any(|s| *s <= 0.0) {
         return Err(GeometryError::InvalidConfig(
-            "every pixel noise scale must be finite and positive",
+            "every pixel noise scale must be positive",
         ));
     }
     if points_world.len() < MIN_POINTS {

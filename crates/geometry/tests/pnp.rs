@@ -310,4 +310,9 @@ fn the_inlier_threshold_follows_the_noise_scale() {
         solve_pnp_ransac_with_sigmas(&world, &px, &sigmas[..3], &cam, None, &cfg),
         Err(GeometryError::LengthMismatch(3, 40))
     );
+    sigmas[0] = f64::NAN;
+    assert_eq!(
+        solve_pnp_ransac_with_sigmas(&world, &px, &sigmas, &cam, None, &cfg),
+        Err(GeometryError::NonFinite)
+    );
 }
