@@ -102,18 +102,27 @@ impl LocalMap {
 
 #[cfg(test)]
 mod tests {
-    use nalgebra::{Isometry3, Point3, Vector3};
+    use nalgebra::{Isometry3, Point3, Vector2, Vector3};
     use vofront_features::Descriptor;
     use vofront_geometry::bundle::BundleConfig;
     use vofront_geometry::{Camera, Pinhole};
 
     use super::super::map::LocalMap;
     use super::super::tests::level0_features;
+    use super::super::MonoConfig;
+
+    /// Up to 0.3 px of deterministic noise per coordinate on keyframe `k`'s view of point `j`.
+    fn smooth_noise(k: usize, j: usize) -> Vector2<f64> {
+        let phase = (7 * j + 3 * k) as f64;
+        0.3 * Vector2::new(phase.sin(), (1.3 * phase).cos())
+    }
 
     /// Four keyframes 0.3 m apart along x looking down z at 60 points 4-8 m away; every
-    /// keyframe sees every point (feature `j` is point `j`) with up to 0.3 px of
-    /// deterministic noise per coordinate, except keyframe 3's view of point 0, 25 px off.
-    fn window() -> (Camera, Vec<Isometry3<f64>>, Vec<Point3<f64>>, LocalMap) {
+    /// keyframe sees every point (feature `j` is point `j`) with the pixel error
+    /// `noise(k, j)`, except keyframe 3's view of point 0, 25 px off.
+    fn window(
+        noise: impl Fn(usize, usize) -> Vector2<f64>,
+    ) -> (Camera, Vec<Isometry3<f64>>, Vec<Point3<f64>>, LocalMap) {
         let camera = Camera::pinhole(Pinhole::new(450.0, 450.0, 320.0, 240.0).unwrap());
         let poses: Vec<Isometry3<f64>> = (0..4)
             .map(|k| Isometry3::translation(0.3 * k as f64, 0.0, 0.0))
@@ -133,8 +142,7 @@ mod tests {
             let (mut xs, mut ys) = (Vec::new(), Vec::new());
             for (j, p) in points.iter().enumerate() {
                 let mut u = camera.project(&(t_wc.inverse() * p).coords).unwrap();
-                let phase = (7 * j + 3 * k) as f64;
-                u += 0.3 * nalgebra::Vector2::new(phase.sin(), (1.3 * phase).cos());
+                u += noise(k, j);
                 if k == 3 && j == 0 {
                     u.x += 25.0;
                 }
@@ -155,7 +163,7 @@ mod tests {
 
     #[test]
     fn perturbed_keyframes_and_points_are_pulled_back_and_the_outlier_unlinked() {
-        let (camera, poses, points, mut map) = window();
+        let (camera, poses, points, mut map) = window(smooth_noise);
         for kf in map.keyframes.iter_mut().skip(2) {
             kf.t_wc *= Isometry3::new(
                 Vector3::new(0.02, -0.01, 0.03),
@@ -202,9 +210,41 @@ mod tests {
         assert!(median < 0.03, "median point error {median} m");
     }
 
+    /// Pixel errors shaped like ORB's whole-pixel keypoints: most views of a corner land
+    /// within 0.05 px of one another, one in four is 0.6 px off (a step to the next pixel).
+    /// The tracker's adjustment unlinks the 25 px outlier and keeps the steps (at most the
+    /// gate's 5% of right observations go), where a gate at the scale estimated from the
+    /// residuals alone (their median absolute deviation) culls more than a fifth.
+    #[test]
+    fn whole_pixel_steps_are_kept_and_the_outlier_unlinked() {
+        let stepped = |k: usize, j: usize| {
+            let fine = 0.05 * smooth_noise(k, j) / 0.3;
+            let sign = if j % 2 == 0 { 1.0 } else { -1.0 };
+            let step = if (j + k) % 4 == 0 { 0.6 * sign } else { 0.0 };
+            fine + Vector2::new(step, 0.0)
+        };
+        let tracker = MonoConfig::default()
+            .local_ba
+            .expect("local adjustment on by default");
+        let (camera, _, _, mut map) = window(stepped);
+        let done = map.adjust(&camera, &tracker).expect("adjusted");
+        assert_eq!(map.keyframes[3].point_of[0], None);
+        // 240 observations: a 95% gate may cull 5% of right ones, not the stepped quarter.
+        assert!(done.culled < 12, "tracker's gate culled {}", done.culled);
+        let (_, _, _, mut bare) = window(stepped);
+        let floorless = bare
+            .adjust(&camera, &BundleConfig::default())
+            .expect("adjusted");
+        assert!(
+            floorless.culled >= 48,
+            "a gate at the bare estimate culled only {}",
+            floorless.culled
+        );
+    }
+
     #[test]
     fn a_window_of_only_the_gauge_is_left_alone() {
-        let (camera, _, _, mut map) = window();
+        let (camera, _, _, mut map) = window(smooth_noise);
         map.keyframes.truncate(2);
         let before: Vec<_> = map.keyframes.iter().map(|k| k.t_wc).collect();
         assert!(map.adjust(&camera, &BundleConfig::default()).is_none());

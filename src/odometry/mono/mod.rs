@@ -53,7 +53,7 @@ use super::keyframe::KeyframeView;
 use super::motion::ConstantVelocity;
 use super::{ms_since, FrameEstimate, FrameQuality, Located, PointLocator, TrackStatus, Tracker};
 use crate::dataset::Frame;
-pub use config::MonoConfig;
+pub use config::{MonoConfig, KEYPOINT_QUANTISATION_PX};
 use init::{initialise, rescale, scale_from_motion, scale_to, InitRules};
 use map::{LocalMap, MapRules, PointId};
 
