@@ -32,8 +32,9 @@ pub(super) struct Adjusted {
 
 impl LocalMap {
     /// Runs the local bundle adjustment (see the module documentation) and writes the refined
-    /// poses and points back; `None` (map unchanged) when the window has no free keyframe or
-    /// the adjustment fails (too few observations, a degenerate system).
+    /// poses and points back; `None` (map unchanged) when the window has no free keyframe, the
+    /// adjustment fails (too few observations, a degenerate system) or it would unlink more
+    /// than half of the newest keyframe's observations.
     pub fn adjust(&mut self, camera: &Camera, cfg: &BundleConfig) -> Option<Adjusted> {
         if self.keyframes.len() <= FIXED_KEYFRAMES {
             return None;
@@ -73,6 +74,16 @@ impl LocalMap {
             }
         }
         let report = bundle_adjust(&mut problem, &cfg).ok()?;
+        // The newest keyframe was accepted on its PnP consensus: an adjustment that calls most
+        // of its observations outliers contradicts the evidence that made it (a collapsed
+        // gate, a degenerate window) and is not applied.
+        let newest = self.keyframes.back().map(|k| k.id);
+        let of_newest = |o: &usize| Some(links[*o].1) == newest;
+        let newest_links = (0..links.len()).filter(of_newest).count();
+        let newest_culled = report.culled.iter().filter(|o| of_newest(o)).count();
+        if 2 * newest_culled > newest_links {
+            return None;
+        }
         for (kf, t_cw) in self.keyframes.iter_mut().zip(&problem.poses) {
             kf.t_wc = t_cw.inverse();
         }
@@ -240,6 +251,29 @@ mod tests {
             "a gate at the bare estimate culled only {}",
             floorless.culled
         );
+    }
+
+    /// Two thirds of the newest keyframe's views 8 px off, each in its own direction (no pose
+    /// explains them): the adjustment would unlink most of the observations that keyframe was
+    /// accepted on, so the map is left as it was.
+    #[test]
+    fn an_adjustment_rejecting_most_of_the_newest_keyframe_is_not_applied() {
+        let shifted = |k: usize, j: usize| {
+            let angle = 2.4 * j as f64;
+            let off = if k == 3 && j < 40 { 8.0 } else { 0.0 };
+            smooth_noise(k, j) + off * Vector2::new(angle.cos(), angle.sin())
+        };
+        let (camera, _, _, mut map) = window(shifted);
+        let poses: Vec<_> = map.keyframes.iter().map(|k| k.t_wc).collect();
+        let links = map.keyframes[3].point_of.clone();
+        let tracker = MonoConfig::default()
+            .local_ba
+            .expect("local adjustment on by default");
+        assert!(map.adjust(&camera, &tracker).is_none());
+        let after: Vec<_> = map.keyframes.iter().map(|k| k.t_wc).collect();
+        assert_eq!(poses, after);
+        assert_eq!(links, map.keyframes[3].point_of);
+        assert_eq!(map.points.len(), 60);
     }
 
     #[test]
