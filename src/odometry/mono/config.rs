@@ -14,9 +14,9 @@ use crate::odometry::keyframe::KeyframePolicy;
 /// window's residuals are not Gaussian: a peak of corners re-detected on the same pixel
 /// beside a spread of one-pixel steps. Their median absolute deviation (0.13 to 0.24 px on
 /// KITTI) understates that spread: gated at it (`5.99 sigma^2`), the adjustment culled a
-/// fifth of all observations and two fifths of the new keyframe's, thinning the map until
-/// tracking failed, and on keyframes taken a few frames apart it left a window it had
-/// emptied to drift by degrees.
+/// fifth of all observations and two fifths of the new keyframe's. The map thinned until
+/// tracking failed, and with keyframes taken a few frames apart the emptied window drifted
+/// by degrees.
 pub const KEYPOINT_QUANTISATION_PX: f64 = 0.5;
 
 /// Settings of [`MonoTracker`](super::MonoTracker).
