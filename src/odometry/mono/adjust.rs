@@ -122,6 +122,13 @@ mod tests {
     use super::super::tests::level0_features;
     use super::super::MonoConfig;
 
+    /// The tracker's default local adjustment settings.
+    fn tracker_adjustment() -> BundleConfig {
+        MonoConfig::default()
+            .local_ba
+            .expect("local adjustment on by default")
+    }
+
     /// Up to 0.3 px of deterministic noise per coordinate on keyframe `k`'s view of point `j`.
     fn smooth_noise(k: usize, j: usize) -> Vector2<f64> {
         let phase = (7 * j + 3 * k) as f64;
@@ -234,9 +241,7 @@ mod tests {
             let step = if (j + k) % 4 == 0 { 0.6 * sign } else { 0.0 };
             fine + Vector2::new(step, 0.0)
         };
-        let tracker = MonoConfig::default()
-            .local_ba
-            .expect("local adjustment on by default");
+        let tracker = tracker_adjustment();
         let (camera, _, _, mut map) = window(stepped);
         let done = map.adjust(&camera, &tracker).expect("adjusted");
         assert_eq!(map.keyframes[3].point_of[0], None);
@@ -266,9 +271,7 @@ mod tests {
         let (camera, _, _, mut map) = window(shifted);
         let poses: Vec<_> = map.keyframes.iter().map(|k| k.t_wc).collect();
         let links = map.keyframes[3].point_of.clone();
-        let tracker = MonoConfig::default()
-            .local_ba
-            .expect("local adjustment on by default");
+        let tracker = tracker_adjustment();
         assert!(map.adjust(&camera, &tracker).is_none());
         let after: Vec<_> = map.keyframes.iter().map(|k| k.t_wc).collect();
         assert_eq!(poses, after);
