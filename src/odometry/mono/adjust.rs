@@ -3,11 +3,11 @@
 //! The window's keyframe poses `T_cw` and every point observed by two or more of them are
 //! refined together on robust reprojection errors by [`vofront_geometry::bundle`]: cost
 //! `sum_o s^2 rho(|pi(T_i P_j) - u_o| / s)`, the points eliminated by the Schur complement.
-//! The gauge, scale included, is the two oldest keyframes of the window (held fixed), so the
-//! scale the window inherited from its past is kept while the newer keyframes and their
-//! points are pulled into agreement with every observation, not only the pair that
-//! triangulated them. Observations beyond the adjustment's chi-square gate are unlinked from
-//! their points; points left with no observation are removed.
+//! The three oldest keyframes of the window are held fixed: two are the gauge (scale
+//! included), and the third keeps the scale the window inherited from its past, while the
+//! newer keyframes and their points are pulled into agreement with every observation, not
+//! only the pair that triangulated them. Observations beyond the adjustment's chi-square gate
+//! are unlinked from their points; points left with no observation are removed.
 
 use vofront_geometry::bundle::{bundle_adjust, BundleConfig, BundleProblem, Observation};
 use vofront_geometry::Camera;
@@ -15,9 +15,17 @@ use vofront_geometry::Camera;
 use super::map::{level_sigma, LocalMap, PointId};
 use crate::odometry::feature_pixel;
 
-/// Keyframes held fixed: the gauge of a monocular window (six rigid degrees of freedom and
-/// the scale).
-const FIXED_KEYFRAMES: usize = 2;
+/// Keyframes held fixed, the oldest of the window.
+///
+/// Two are the gauge of a monocular window (six rigid degrees of freedom and the scale). The
+/// window forgets: when a keyframe leaves it, its observations are dropped, not kept as a
+/// prior (no marginalisation), so an older keyframe's pose is supported by less evidence
+/// than placed it. A third fixed keyframe stands in for that prior. Measured over RANSAC
+/// seeds 0-23 on the real KITTI clips and 0-7 on the rendered drive, against two fixed
+/// keyframes: `kitti_06` ATE median / worst 0.076 / 0.814 m -> 0.067 / 0.119 m, `kitti_01`
+/// 0.322 / 0.453 -> 0.327 / 0.395 m, the drive 0.46 / 1.25% -> 0.40 / 0.70% of the path.
+/// Four fixed (one free keyframe) is worse on all three.
+const FIXED_KEYFRAMES: usize = 3;
 
 /// What one local adjustment did.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -121,6 +129,7 @@ mod tests {
     use super::super::map::LocalMap;
     use super::super::tests::level0_features;
     use super::super::MonoConfig;
+    use super::FIXED_KEYFRAMES;
 
     /// The tracker's default local adjustment settings.
     fn tracker_adjustment() -> BundleConfig {
@@ -182,7 +191,7 @@ mod tests {
     #[test]
     fn perturbed_keyframes_and_points_are_pulled_back_and_the_outlier_unlinked() {
         let (camera, poses, points, mut map) = window(smooth_noise);
-        for kf in map.keyframes.iter_mut().skip(2) {
+        for kf in map.keyframes.iter_mut().skip(FIXED_KEYFRAMES) {
             kf.t_wc *= Isometry3::new(
                 Vector3::new(0.02, -0.01, 0.03),
                 Vector3::new(0.0, 0.004, 0.002),
@@ -199,11 +208,12 @@ mod tests {
         assert_eq!(map.keyframes[3].point_of[0], None);
         assert!(done.culled >= 1 && done.culled <= 12, "{done:?}");
         assert!(done.rmse_px < 0.5, "{done:?}");
-        // The two oldest keyframes are the gauge: untouched.
-        assert_eq!(map.keyframes[0].t_wc, poses[0]);
-        assert_eq!(map.keyframes[1].t_wc, poses[1]);
+        // The oldest keyframes are held fixed: untouched.
+        for (kf, truth) in map.keyframes.iter().zip(&poses).take(FIXED_KEYFRAMES) {
+            assert_eq!(kf.t_wc, *truth);
+        }
         // The others come back from 3.6 cm and 0.26 deg off to the noise level.
-        for (kf, truth) in map.keyframes.iter().zip(&poses).skip(2) {
+        for (kf, truth) in map.keyframes.iter().zip(&poses).skip(FIXED_KEYFRAMES) {
             let dt = (kf.t_wc.translation.vector - truth.translation.vector).norm();
             let dr = kf.t_wc.rotation.angle_to(&truth.rotation).to_degrees();
             assert!(
@@ -280,9 +290,9 @@ mod tests {
     }
 
     #[test]
-    fn a_window_of_only_the_gauge_is_left_alone() {
+    fn a_window_of_only_fixed_keyframes_is_left_alone() {
         let (camera, _, _, mut map) = window(smooth_noise);
-        map.keyframes.truncate(2);
+        map.keyframes.truncate(FIXED_KEYFRAMES);
         let before: Vec<_> = map.keyframes.iter().map(|k| k.t_wc).collect();
         assert!(map.adjust(&camera, &BundleConfig::default()).is_none());
         let after: Vec<_> = map.keyframes.iter().map(|k| k.t_wc).collect();

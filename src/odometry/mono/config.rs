@@ -67,7 +67,7 @@ pub struct MonoConfig {
     /// (`None`: one pass).
     pub relocate_window_px: Option<f32>,
     /// Local bundle adjustment of the window after each keyframe (module `adjust`; its
-    /// `fixed_poses` is always the two oldest keyframes); `None` turns it off. By default its
+    /// `fixed_poses` is always the three oldest keyframes); `None` turns it off. By default its
     /// gate's noise scale is floored at [`KEYPOINT_QUANTISATION_PX`].
     pub local_ba: Option<BundleConfig>,
 }
