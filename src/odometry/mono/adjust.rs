@@ -20,11 +20,11 @@ use crate::odometry::feature_pixel;
 /// Two are the gauge of a monocular window (six rigid degrees of freedom and the scale). The
 /// window forgets: when a keyframe leaves it, its observations are dropped, not kept as a
 /// prior (no marginalisation), so an older keyframe's pose rests on less evidence than the
-/// evidence that placed it. A third fixed keyframe stands in for that prior. Measured over RANSAC
-/// seeds 0-23 on the real KITTI clips and 0-7 on the rendered drive, against two fixed
-/// keyframes: `kitti_06` ATE median / worst 0.076 / 0.814 m -> 0.067 / 0.119 m, `kitti_01`
-/// 0.322 / 0.453 -> 0.327 / 0.395 m, the drive 0.46 / 1.25% -> 0.40 / 0.70% of the path.
-/// Four fixed (one free keyframe) is worse on all three.
+/// evidence that placed it. A third fixed keyframe stands in for that prior. Measured over
+/// RANSAC seeds 0-23 on the real KITTI clips and 0-7 on the rendered drive, against two
+/// fixed keyframes: `kitti_06` ATE median / worst 0.076 / 0.814 m -> 0.067 / 0.119 m,
+/// `kitti_01` 0.322 / 0.453 -> 0.327 / 0.395 m, the drive 0.46 / 1.25% -> 0.40 / 0.70% of
+/// the path. Four fixed (one free keyframe) is worse on all three.
 const FIXED_KEYFRAMES: usize = 3;
 
 /// What one local adjustment did.
