@@ -1,17 +1,20 @@
 //! Sequence trackers on rendered TUM sequences with exact ground truth.
 
 use std::path::PathBuf;
+use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::OnceLock;
 
-use vofront::dataset::{Dataset, DatasetError};
+use nalgebra::Isometry3;
+
+use vofront::dataset::{Dataset, DatasetError, Frame};
 use vofront::eval::{ate, Alignment, EvalConfig};
 use vofront::fixtures::scene::{default_camera, rescaled_camera, room_trajectory, Scene};
 use vofront::fixtures::tum::write_tum_sequence;
 use vofront::odometry::direct::{DirectTracker, DirectTrackerConfig};
 use vofront::odometry::feature_rgbd::{FeatureRgbdConfig, FeatureRgbdTracker};
 use vofront::odometry::mono::{MonoConfig, MonoTracker};
-use vofront::odometry::run::{run, RunSummary};
-use vofront::odometry::{TrackStatus, Tracker};
+use vofront::odometry::run::{run, run_with, FrameRecord, RunControl, RunSummary};
+use vofront::odometry::{FrameEstimate, FrameQuality, TrackStatus, Tracker};
 use vofront::trajectory::Trajectory;
 
 /// Frames in the synthetic sequences (about 1 cm and 0.3 deg per frame).
@@ -184,21 +187,144 @@ fn monocular_tracker_initialises_and_keeps_a_consistent_scale() {
         .iter()
         .map(|r| r.estimate.as_ref().unwrap().status)
         .collect();
-    let init = status
+    // The frames the initialisation waited through are located in its map once it exists
+    // (`Tracker::revised`), so every frame is tracked.
+    assert!(status.iter().all(|s| *s == TrackStatus::Ok), "{status:?}");
+    let waited = out
+        .records
         .iter()
-        .skip(1)
-        .position(|s| *s == TrackStatus::Ok)
-        .map(|i| i + 1)
-        .unwrap();
-    assert!(init <= MONO_MAX_INIT_FRAMES, "{status:?}");
-    assert!(
-        status[init..].iter().all(|s| *s == TrackStatus::Ok),
-        "{status:?}"
-    );
+        .filter(|r| {
+            let message = r.estimate.as_ref().unwrap().message.as_deref();
+            message.is_some_and(|m| m.contains("waited for parallax"))
+        })
+        .count();
+    assert!((1..MONO_MAX_INIT_FRAMES).contains(&waited), "{waited}");
+    assert_eq!(out.trajectory.len(), FRAMES);
     let gt = dataset.ground_truth.clone().unwrap();
     let a = ate_rmse(&gt, &out.trajectory, Alignment::Sim3);
     assert!(a < MONO_ATE_M, "ATE {} m", a);
     // A rigid alignment cannot fix the arbitrary scale: the trajectory is not metric.
     let rigid = ate_rmse(&gt, &out.trajectory, Alignment::Se3);
     assert!(rigid > 5.0 * a);
+}
+
+/// A scripted tracker: frames 1-3 are reported lost while it "waits" (1 ms each), pending, and
+/// replaced at frame 4 by estimates at `x = index` (0.25 ms of late work each); it raises
+/// `stop` after tracking frame `stop_after`.
+struct LateTracker<'a> {
+    frames: usize,
+    revised: Vec<(usize, FrameEstimate)>,
+    stop: &'a AtomicBool,
+    stop_after: usize,
+}
+
+impl LateTracker<'_> {
+    const WAITED: std::ops::Range<usize> = 1..4;
+
+    fn estimate(index: usize, status: TrackStatus, ms: f64) -> FrameEstimate {
+        FrameEstimate {
+            pose_wc: Isometry3::translation(index as f64, 0.0, 0.0),
+            status,
+            quality: FrameQuality {
+                ms,
+                ..FrameQuality::default()
+            },
+            message: None,
+            pose_quality: None,
+        }
+    }
+}
+
+impl Tracker for LateTracker<'_> {
+    fn track(&mut self, _: &Frame) -> FrameEstimate {
+        let index = self.frames;
+        self.frames += 1;
+        self.stop.store(index == self.stop_after, Ordering::SeqCst);
+        if index == Self::WAITED.end {
+            let late = Self::WAITED.map(|k| (index - k, Self::estimate(k, TrackStatus::Ok, 0.25)));
+            self.revised = late.collect();
+        }
+        if Self::WAITED.contains(&index) {
+            Self::estimate(0, TrackStatus::Lost, 1.0)
+        } else {
+            Self::estimate(index, TrackStatus::Ok, 1.0)
+        }
+    }
+
+    fn pending(&self) -> usize {
+        let last = self.frames - 1;
+        if Self::WAITED.contains(&last) {
+            last
+        } else {
+            0
+        }
+    }
+
+    fn revised(&mut self) -> Vec<(usize, FrameEstimate)> {
+        std::mem::take(&mut self.revised)
+    }
+}
+
+/// Runs a [`LateTracker`] over the first `frames` frames of the room sequence, stopping after
+/// frame `stop_after`; the sink's (index, status, x) in the order it saw them, and the output.
+fn run_late(
+    frames: usize,
+    stop_after: usize,
+) -> (
+    Vec<(usize, TrackStatus, f64)>,
+    vofront::odometry::run::RunOutput,
+) {
+    let stop = AtomicBool::new(false);
+    let mut tracker = LateTracker {
+        frames: 0,
+        revised: Vec::new(),
+        stop: &stop,
+        stop_after,
+    };
+    let mut seen = Vec::new();
+    let mut sink = |r: &FrameRecord| {
+        let e = r.estimate.as_ref().unwrap();
+        seen.push((r.index, e.status, e.pose_wc.translation.x));
+        Ok(())
+    };
+    let control = RunControl {
+        max_frames: Some(frames),
+        stop: Some(&stop),
+    };
+    let out = run_with(shared_sequence(), &mut tracker, &control, &mut sink).unwrap();
+    (seen, out)
+}
+
+#[test]
+fn revised_frames_reach_the_sink_in_order_with_their_late_estimates() {
+    let (seen, out) = run_late(6, usize::MAX);
+    let expected: Vec<(usize, TrackStatus, f64)> =
+        (0..6).map(|i| (i, TrackStatus::Ok, i as f64)).collect();
+    assert_eq!(seen, expected);
+    assert_eq!((out.summary.frames, out.summary.lost), (6, 0));
+    assert_eq!(out.trajectory.len(), 6);
+    // A revised frame's time is its first answer's and the late work's.
+    let ms: Vec<f64> = out
+        .records
+        .iter()
+        .map(|r| r.estimate.as_ref().unwrap().quality.ms)
+        .collect();
+    assert_eq!(ms, [1.0, 1.25, 1.25, 1.25, 1.0, 1.0]);
+}
+
+#[test]
+fn pending_frames_are_sent_as_they_are_when_the_run_ends_or_stops() {
+    for (frames, stop_after) in [(3, usize::MAX), (6, 2)] {
+        let (seen, out) = run_late(frames, stop_after);
+        let statuses: Vec<(usize, TrackStatus)> = seen.iter().map(|s| (s.0, s.1)).collect();
+        let lost = TrackStatus::Lost;
+        let expected = vec![(0, TrackStatus::Ok), (1, lost), (2, lost)];
+        assert_eq!(
+            statuses, expected,
+            "{frames} frames, stop after {stop_after}"
+        );
+        assert_eq!(out.summary.lost, 2);
+        assert_eq!(out.summary.interrupted, stop_after == 2);
+        assert_eq!(out.trajectory.len(), 1);
+    }
 }

@@ -113,7 +113,8 @@ pub struct Odometry {
     /// Locked while a frame is tracked (the GIL is released then).
     tracker: Mutex<Box<dyn Tracker + Send>>,
     depth_scale: f64,
-    frames: usize,
+    /// Timestamp of every frame tracked, in order.
+    timestamps: Vec<f64>,
 }
 
 #[pymethods]
@@ -133,7 +134,7 @@ impl Odometry {
             method,
             tracker: Mutex::new(method.tracker(camera)?),
             depth_scale,
-            frames: 0,
+            timestamps: Vec::new(),
         })
     }
 
@@ -157,7 +158,7 @@ impl Odometry {
             }
             None => None,
         };
-        let timestamp = timestamp.unwrap_or(self.frames as f64);
+        let timestamp = timestamp.unwrap_or(self.timestamps.len() as f64);
         let frame = Frame::new(timestamp, img, depth).map_err(|e| bad(e.to_string()))?;
         let tracker = &self.tracker;
         let estimate = release(py, || {
@@ -166,14 +167,32 @@ impl Odometry {
                 .map_err(|_| failed("the tracker failed on an earlier frame"))?;
             Ok(tracker.track(&frame))
         })?;
-        self.frames += 1;
+        self.timestamps.push(timestamp);
         estimate_dict(py, timestamp, &estimate)
+    }
+
+    /// Late estimates made by the last `track` call for earlier frames: the monocular tracker
+    /// reports the frames its initialisation waits through lost, then locates them in the map
+    /// once it exists. A list of `(frame, estimate dict)`, `frame` the index of the replaced
+    /// frame (0: the first tracked), oldest first; each list is handed over once.
+    fn revised<'py>(&mut self, py: Python<'py>) -> PyResult<Vec<(usize, Bound<'py, PyDict>)>> {
+        let revised = self
+            .tracker
+            .lock()
+            .map_err(|_| failed("the tracker failed on an earlier frame"))?
+            .revised();
+        let newest = self.timestamps.len().saturating_sub(1);
+        revised
+            .into_iter()
+            .filter_map(|(back, e)| Some((newest.checked_sub(back)?, e)))
+            .map(|(frame, e)| Ok((frame, estimate_dict(py, self.timestamps[frame], &e)?)))
+            .collect()
     }
 
     /// Number of frames tracked so far.
     #[getter]
     fn frames(&self) -> usize {
-        self.frames
+        self.timestamps.len()
     }
 }
 

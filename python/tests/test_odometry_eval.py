@@ -48,6 +48,23 @@ def test_odometry_tracks_rendered_sequence(sequence, method):
     assert ate["pairs"] == len(est) and ate["rmse"] < 0.005
 
 
+def test_feature_odometry_locates_the_frames_its_initialisation_waited_through(sequence):
+    vo = vofront.Odometry("feature", K_RENDER)
+    est, late = [], {}
+    for stamp, img, _ in frames(sequence):
+        est.append(vo.track(img, timestamp=stamp))
+        for frame, revised in vo.revised():
+            assert est[frame]["status"] == "lost" and frame not in late
+            late[frame] = revised
+    assert late, [e["status"] for e in est]
+    for frame, revised in late.items():
+        assert revised["status"] == "ok" and revised["timestamp"] == est[frame]["timestamp"]
+        assert revised["quality"]["inliers"] > 0 and revised["pose_quality"] is not None
+        est[frame] = revised
+    assert [e["status"] for e in est] == ["ok"] * len(est)
+    assert vo.revised() == []
+
+
 def test_odometry_bad_inputs(sequence):
     _, img, depth = next(frames(sequence))
     with pytest.raises(ValueError, match="method"):

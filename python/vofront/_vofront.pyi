@@ -155,6 +155,11 @@ class Odometry:
         (``ok`` / ``unreliable`` / ``lost`` / ``reinitialised``), ``quality``, ``message`` and
         ``pose_quality`` (the estimate's quality record: ``verdict``, ``reasons``, sigmas; None
         without an estimate)."""
+    def revised(self) -> list[Tuple[int, dict[str, Any]]]:
+        """Late estimates made by the last ``track`` call for earlier frames, oldest first, as
+        ``(frame index, estimate dict)``: the ``feature`` tracker reports the frames its
+        initialisation waits through ``lost``, then locates them once its map exists. Each
+        list is handed over once."""
     @property
     def frames(self) -> int:
         """Frames tracked so far."""

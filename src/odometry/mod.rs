@@ -110,9 +110,31 @@ pub fn reasons_text(q: &Quality) -> String {
 }
 
 /// Follows a camera through consecutive frames.
+///
+/// A tracker may answer some frames late: a monocular tracker waiting for parallax reports
+/// the frames it waits through lost, then locates them in the map it initialises. While
+/// [`pending`](Tracker::pending) is `p > 0`, the estimates of the last `p` frames tracked may
+/// still be replaced; [`revised`](Tracker::revised) hands the replacements over after the
+/// `track` call that made them. A caller writing estimates as it goes holds pending frames
+/// back ([`run_with`](run::run_with) does); one that ignores both methods only misses the
+/// late answers.
 pub trait Tracker {
     /// Estimates the pose of the next frame.
     fn track(&mut self, frame: &Frame) -> FrameEstimate;
+
+    /// How many of the most recent frames tracked (the last one included) may still have
+    /// their estimates replaced; 0 (the default) for a tracker that never revises.
+    fn pending(&self) -> usize {
+        0
+    }
+
+    /// Replacements made by the last `track` call for frames that were pending before it,
+    /// oldest first, each with its position counted back from the last frame tracked (1: the
+    /// frame before it; `quality.ms` is the late work's time alone); the list is handed over
+    /// once. Empty by default.
+    fn revised(&mut self) -> Vec<(usize, FrameEstimate)> {
+        Vec::new()
+    }
 }
 
 use crate::pipeline::VoError;

@@ -1,11 +1,15 @@
 //! Drives a [`Tracker`] over a dataset, streaming each frame's record to a [`FrameSink`] as
-//! soon as the frame is tracked, and stopping cleanly between frames when asked.
+//! soon as its estimate is final, and stopping cleanly between frames when asked.
 //!
 //! [`run_with`] is the full form: a [`RunControl`] (frame limit, stop flag) and a sink that
-//! sees every record before the next frame is read, so that an interrupted or crashed run
-//! leaves every completed frame on disk ([`TumSink`], [`MetricsCsvSink`], flushed per frame).
+//! sees every final record before the next frame is read, so that an interrupted or crashed
+//! run leaves every completed frame on disk ([`TumSink`], [`MetricsCsvSink`], flushed per
+//! frame). A frame the tracker may still revise ([`Tracker::pending`]: the frames a monocular
+//! initialisation waits through) is held back until its late estimate or the initialisation's
+//! failure settles it; a stop or the end of the dataset sends held frames as they are.
 //! [`run`] is the simple form: everything in memory, with a progress callback.
 
+use std::collections::VecDeque;
 use std::convert::Infallible;
 use std::io::{self, Write};
 use std::path::Path;
@@ -86,6 +90,36 @@ impl RunSummary {
             && records[records.len().saturating_sub(tail)..]
                 .iter()
                 .all(|r| !matches!(&r.estimate, Ok(e) if e.status != TrackStatus::Lost))
+    }
+
+    /// Counts `record` in.
+    fn count(&mut self, record: &FrameRecord) {
+        self.frames += 1;
+        match &record.estimate {
+            Ok(e) => {
+                self.keyframes += usize::from(e.quality.keyframe);
+                match e.status {
+                    TrackStatus::Lost => self.lost += 1,
+                    TrackStatus::Reinitialised => self.reinitialised += 1,
+                    TrackStatus::Unreliable => self.unreliable += 1,
+                    TrackStatus::Ok => {}
+                }
+            }
+            Err(_) => self.unreadable += 1,
+        }
+    }
+
+    /// Sets `mean_ms` from the frames of `records` that were read.
+    fn set_mean_ms(&mut self, records: &[FrameRecord]) {
+        let ms: Vec<f64> = records
+            .iter()
+            .filter_map(|r| r.estimate.as_ref().ok().map(|e| e.quality.ms))
+            .collect();
+        self.mean_ms = if ms.is_empty() {
+            0.0
+        } else {
+            ms.iter().sum::<f64>() / ms.len() as f64
+        };
     }
 
     /// Frames per second of tracking time (`1000 / mean_ms`), `None` when no frame was read.
@@ -342,8 +376,9 @@ pub enum RunError {
     },
 }
 
-/// Tracks the frames of `dataset` allowed by `control`, handing each record to `sink` before
-/// the next frame is read. Unreadable frames are recorded (and sent) and skipped.
+/// Tracks the frames of `dataset` allowed by `control`, handing each record to `sink`, in
+/// frame order, before the next frame is read (pending frames once settled, see the module
+/// documentation). Unreadable frames are recorded (and sent) and skipped.
 ///
 /// ```
 /// use std::sync::atomic::{AtomicBool, Ordering};
@@ -390,6 +425,10 @@ pub fn run_with(
 }
 
 /// The loop of [`run_with`] for any sink error type `E`; `Err((frame index, error))`.
+///
+/// Records wait in `held` while the tracker may still revise them ([`Tracker::pending`]),
+/// take its revisions there, and go to the summary, the trajectory and the sink in frame
+/// order; a stop or the end of the dataset sends the held ones as they are.
 fn drive<E>(
     dataset: &Dataset,
     tracker: &mut dyn Tracker,
@@ -400,44 +439,70 @@ fn drive<E>(
         .max_frames
         .map_or(dataset.len(), |m| m.min(dataset.len()));
     let mut out = RunOutput::default();
-    let mut ms_sum = 0.0;
+    let mut held = VecDeque::new();
+    let mut send = |record: FrameRecord, out: &mut RunOutput| {
+        out.summary.count(&record);
+        if let Some(pose) = record.trajectory_pose() {
+            out.trajectory.push(record.timestamp, pose);
+        }
+        sink(&record).map_err(|e| (record.index, e))?;
+        out.records.push(record);
+        Ok(())
+    };
     for index in 0..total {
         if control.stop.is_some_and(|s| s.load(Ordering::SeqCst)) {
             out.summary.interrupted = true;
             break;
         }
-        let record = FrameRecord {
+        let estimate = dataset
+            .load(index)
+            .map_err(Arc::new)
+            .map(|frame| tracker.track(&frame));
+        let tracked = estimate.is_ok();
+        held.push_back(FrameRecord {
             index,
             timestamp: dataset.frames[index].timestamp,
-            estimate: dataset
-                .load(index)
-                .map_err(Arc::new)
-                .map(|frame| tracker.track(&frame)),
-        };
-        let s = &mut out.summary;
-        s.frames += 1;
-        match &record.estimate {
-            Ok(e) => {
-                ms_sum += e.quality.ms;
-                s.keyframes += usize::from(e.quality.keyframe);
-                match e.status {
-                    TrackStatus::Lost => s.lost += 1,
-                    TrackStatus::Reinitialised => s.reinitialised += 1,
-                    TrackStatus::Unreliable => s.unreliable += 1,
-                    TrackStatus::Ok => {}
-                }
-            }
-            Err(_) => s.unreadable += 1,
+            estimate,
+        });
+        if tracked {
+            revise(&mut held, tracker.revised());
         }
-        if let Some(pose) = record.trajectory_pose() {
-            out.trajectory.push(record.timestamp, pose);
+        while let Some(record) = take_settled(&mut held, tracker.pending()) {
+            send(record, &mut out)?;
         }
-        sink(&record).map_err(|e| (index, e))?;
-        out.records.push(record);
     }
-    let read = out.summary.frames - out.summary.unreadable;
-    out.summary.mean_ms = if read > 0 { ms_sum / read as f64 } else { 0.0 };
+    while let Some(record) = held.pop_front() {
+        send(record, &mut out)?;
+    }
+    out.summary.set_mean_ms(&out.records);
     Ok(out)
+}
+
+/// Puts each revised estimate (counted back from the newest tracked record, 1 the one before
+/// it) into its held record, its time added to the first answer's; revisions of records no
+/// longer held are ignored.
+fn revise(held: &mut VecDeque<FrameRecord>, revised: Vec<(usize, FrameEstimate)>) {
+    for (back, mut estimate) in revised {
+        let record = held
+            .iter_mut()
+            .rev()
+            .filter(|r| r.estimate.is_ok())
+            .nth(back);
+        if let Some(Ok(first)) = record.map(|r| &mut r.estimate) {
+            estimate.quality.ms += first.quality.ms;
+            *first = estimate;
+        }
+    }
+}
+
+/// The oldest held record when it can no longer change: an unreadable one, or a tracked one
+/// older than the `pending` newest tracked records.
+fn take_settled(held: &mut VecDeque<FrameRecord>, pending: usize) -> Option<FrameRecord> {
+    let front_tracked = held.front()?.estimate.is_ok();
+    let tracked = held.iter().filter(|r| r.estimate.is_ok()).count();
+    (!front_tracked || tracked > pending)
+        .then(|| held.pop_front())
+        .flatten()
 }
 
 /// Tracks the first `max_frames` frames of `dataset` (all when `None`) in memory, calling

@@ -4,7 +4,10 @@
 //! 1. Initialisation (`init`): the first frame with enough features is the reference; later
 //!    frames are matched to it until the parallax allows a two-view map. A frame with too few
 //!    features is skipped (never made the reference), and a reference that no longer matches
-//!    the current frame is replaced by it.
+//!    the current frame is replaced by it. The frames waited through are reported lost and
+//!    pending ([`Tracker::pending`]); once the map exists each is located in it from the pose
+//!    its index places between the two views (`locate`), and handed over as a late estimate
+//!    ([`Tracker::revised`]).
 //! 2. Tracking: every point of the local map (`map`: the points observed by the window of
 //!    recent keyframes) is projected with the constant-velocity prediction `pi(K T_cw' P_w)`
 //!    and matched to the current features around it, among those of the pyramid level it is
@@ -39,6 +42,7 @@
 mod adjust;
 mod config;
 mod init;
+mod locate;
 mod map;
 #[cfg(test)]
 mod tests;
@@ -79,11 +83,14 @@ fn median_parallax_deg<'a>(
 enum State {
     /// Nothing seen yet, or just lost on a frame that could not serve as a reference.
     Empty,
-    /// Waiting for enough parallax against `reference`.
+    /// Waiting for enough parallax against `reference`, frame `since`; `waited`: the later
+    /// frames that could not initialise with it (index, features), located once a map exists.
     Initialising {
         reference: Features,
         t_wc: Isometry3<f64>,
         frames: usize,
+        since: usize,
+        waited: Vec<(usize, Features)>,
     },
     /// Tracking against the local map; the residual of the first frame after its keyframe.
     Tracking {
@@ -133,6 +140,8 @@ pub struct MonoTracker {
     coasted: usize,
     /// Index of the frame being tracked (frames given so far before it).
     frame: usize,
+    /// Late estimates of waited frames made by the last `track` call ([`Tracker::revised`]).
+    revised: Vec<(usize, FrameEstimate)>,
 }
 
 impl MonoTracker {
@@ -150,6 +159,7 @@ impl MonoTracker {
             lost_step: None,
             coasted: 0,
             frame: 0,
+            revised: Vec::new(),
         })
     }
 
@@ -194,35 +204,7 @@ impl MonoTracker {
         let scale_factor = self.cfg.orb.scale_factor;
         let (query, positions, ids) =
             map.local_points(&self.camera, &predicted.inverse(), size, scale_factor);
-        let locate = |window_px: f32, prior: Isometry3<f64>| {
-            let locator = PointLocator {
-                camera: &self.camera,
-                matching: &self.cfg.matching,
-                window_px,
-                pnp: &self.cfg.pnp,
-                min_inliers: self.cfg.min_inliers,
-            };
-            locator.locate(&query, &positions, &current, prior)
-        };
-        // A motion change the prediction missed (the start of a turn) moves the points out of
-        // the search window: one retry with a wider window before the frame is lost.
-        let mut located = locate(self.cfg.window_px, predicted.inverse());
-        if located.fit.is_err() {
-            located = locate(self.cfg.window_px * WIDE_WINDOW_FACTOR, predicted.inverse());
-        }
-        // The wide window around the prediction takes wrong candidates and loses right ones
-        // to the ratio test; around the located pose a narrow window finds the map's points
-        // again, and that pose replaces the first when it has more support.
-        if let (Some(radius), Ok(first)) = (self.cfg.relocate_window_px, &located.fit) {
-            let again = locate(radius, first.pose);
-            let better = again
-                .fit
-                .as_ref()
-                .is_ok_and(|fit| fit.inlier_count() > first.inlier_count());
-            if better {
-                located = again;
-            }
-        }
+        let located = self.locate_in_map(&query, &positions, &current, predicted);
         let Located {
             matches,
             points: world,
@@ -242,6 +224,8 @@ impl MonoTracker {
                         reference: current,
                         t_wc: predicted,
                         frames: 0,
+                        since: self.frame,
+                        waited: Vec::new(),
                     };
                 }
                 let quality = FrameQuality::default();
@@ -454,6 +438,7 @@ impl MonoTracker {
 
 impl Tracker for MonoTracker {
     fn track(&mut self, frame: &Frame) -> FrameEstimate {
+        self.revised.clear();
         let predicted = self.motion.predict().unwrap_or_else(Isometry3::identity);
         let estimate = self.track_from(frame, predicted);
         self.frame += 1;
@@ -470,6 +455,18 @@ impl Tracker for MonoTracker {
             self.coasted = 0;
         }
         estimate
+    }
+
+    /// While initialising: the frames after the reference (located late once a map exists).
+    fn pending(&self) -> usize {
+        match &self.state {
+            State::Initialising { since, .. } => self.frame.saturating_sub(since + 1),
+            _ => 0,
+        }
+    }
+
+    fn revised(&mut self) -> Vec<(usize, FrameEstimate)> {
+        std::mem::take(&mut self.revised)
     }
 }
 
@@ -508,6 +505,8 @@ impl MonoTracker {
                     reference: current,
                     t_wc: predicted,
                     frames: 0,
+                    since: self.frame,
+                    waited: Vec::new(),
                 };
                 if first {
                     // The first frame defines the world frame: it is tracked by definition.
@@ -525,26 +524,41 @@ impl MonoTracker {
                 reference,
                 t_wc,
                 frames,
+                since,
+                mut waited,
             } => {
                 let rules = self.init_rules();
                 let pair = (self.frame - frames - 1, self.frame);
                 match initialise(&rules, &reference, &t_wc, &current, pair) {
-                    Ok((map, quality, pose_quality)) => self
-                        .start_map(map, &t_wc, frames + 1, quality, start)
-                        .judged(pose_quality),
+                    Ok((map, quality, pose_quality)) => {
+                        let estimate = self
+                            .start_map(map, &t_wc, frames + 1, quality, start)
+                            .judged(pose_quality);
+                        if let State::Tracking { map, .. } = &self.state {
+                            let size = frame.image().dimensions();
+                            let ends = ((since, &t_wc), (self.frame, &estimate.pose_wc));
+                            self.revised = self.locate_waited(map, &waited, ends.0, ends.1, size);
+                        }
+                        estimate
+                    }
                     Err(failure) => {
                         let keep = failure.keep_reference && frames < self.cfg.max_init_frames;
                         self.state = if keep {
+                            waited.push((self.frame, current));
                             State::Initialising {
                                 reference,
                                 t_wc,
                                 frames: frames + 1,
+                                since,
+                                waited,
                             }
                         } else {
                             State::Initialising {
                                 reference: current,
                                 t_wc: predicted,
                                 frames: 0,
+                                since: self.frame,
+                                waited: Vec::new(),
                             }
                         };
                         Self::skipped(predicted, failure.why, start)

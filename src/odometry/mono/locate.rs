@@ -1,0 +1,129 @@
+//! Locating a frame in the local map: the three matching passes of tracking, and the late
+//! location of the frames an initialisation waited through.
+
+use std::time::Instant;
+
+use nalgebra::Isometry3;
+use vofront_features::Features;
+
+use super::map::{LocalMap, PointId};
+use super::{MonoTracker, WIDE_WINDOW_FACTOR};
+use crate::odometry::{FrameEstimate, FrameQuality, Located, PointLocator, TrackStatus};
+
+/// The message of a frame located after the initialisation it waited for.
+pub(super) const LATE_MESSAGE: &str = "located once the map was initialised (waited for parallax)";
+
+/// The pose a fraction `f` of the way along the screw motion from `t_w1` to `t_w2`:
+/// `T_w1 exp(f log(T_w1^-1 T_w2))`, with the rotation and translation interpolated apart.
+fn along(t_w1: &Isometry3<f64>, t_w2: &Isometry3<f64>, f: f64) -> Isometry3<f64> {
+    let t_12 = t_w1.inverse() * t_w2;
+    t_w1 * Isometry3::new(t_12.translation.vector * f, t_12.rotation.scaled_axis() * f)
+}
+
+impl MonoTracker {
+    /// Locates `current` in the map's points (`query`, `positions`: [`LocalMap::local_points`])
+    /// from the prediction `predicted` (`T_wc`): matched within `window_px`, then once more
+    /// within `WIDE_WINDOW_FACTOR` times it if that fails (a motion change the prediction
+    /// missed, such as the start of a turn, moves the points out of the window); then the
+    /// points are matched again within `relocate_window_px` of the located pose, which takes
+    /// fewer wrong candidates and loses fewer right ones to the ratio test, and that location
+    /// replaces the first when it has more inliers.
+    pub(super) fn locate_in_map(
+        &self,
+        query: &Features,
+        positions: &[Option<nalgebra::Point3<f64>>],
+        current: &Features,
+        predicted: Isometry3<f64>,
+    ) -> Located {
+        let locate = |window_px: f32, prior: Isometry3<f64>| {
+            let locator = PointLocator {
+                camera: &self.camera,
+                matching: &self.cfg.matching,
+                window_px,
+                pnp: &self.cfg.pnp,
+                min_inliers: self.cfg.min_inliers,
+            };
+            locator.locate(query, positions, current, prior)
+        };
+        let mut located = locate(self.cfg.window_px, predicted.inverse());
+        if located.fit.is_err() {
+            located = locate(self.cfg.window_px * WIDE_WINDOW_FACTOR, predicted.inverse());
+        }
+        if let (Some(radius), Ok(first)) = (self.cfg.relocate_window_px, &located.fit) {
+            let again = locate(radius, first.pose);
+            let better = again
+                .fit
+                .as_ref()
+                .is_ok_and(|fit| fit.inlier_count() > first.inlier_count());
+            if better {
+                located = again;
+            }
+        }
+        located
+    }
+
+    /// The frames an initialisation waited through (`waited`: frame index and features, the
+    /// reference at `t_w1` being frame `since`), located in the new `map` whose current frame
+    /// `now` is at `t_wn`: each from the pose its index places on the way between the two
+    /// (`along`), as a tracked frame is. Returns `(frames back from now, estimate)` for those
+    /// located; the others stay lost.
+    pub(super) fn locate_waited(
+        &self,
+        map: &LocalMap,
+        waited: &[(usize, Features)],
+        (since, t_w1): (usize, &Isometry3<f64>),
+        (now, t_wn): (usize, &Isometry3<f64>),
+        size: (u32, u32),
+    ) -> Vec<(usize, FrameEstimate)> {
+        let span = now.saturating_sub(since).max(1) as f64;
+        let scale_factor = self.cfg.orb.scale_factor;
+        waited
+            .iter()
+            .filter(|(frame, _)| (since + 1..now).contains(frame))
+            .filter_map(|(frame, features)| {
+                let start = Instant::now();
+                let predicted = along(t_w1, t_wn, (frame - since) as f64 / span);
+                let (query, positions, _): (Features, _, Vec<PointId>) =
+                    map.project_points(&self.camera, &predicted.inverse(), size, scale_factor);
+                let located = self.locate_in_map(&query, &positions, features, predicted);
+                let fit = located.fit.ok()?;
+                let quality = FrameQuality {
+                    inliers: fit.inlier_count(),
+                    inlier_ratio: fit.inlier_count() as f64 / located.matches.len().max(1) as f64,
+                    rmse: fit.rmse_px,
+                    iterations: fit.iterations,
+                    covariance_trace: fit.covariance.map(|c| c.trace()),
+                    keyframe: false,
+                    ms: 0.0,
+                };
+                let estimate = Self::estimate(
+                    fit.pose.inverse(),
+                    TrackStatus::Ok,
+                    quality,
+                    Some(LATE_MESSAGE.into()),
+                    start,
+                )
+                .judged(fit.quality);
+                Some((now - frame, estimate))
+            })
+            .collect()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use nalgebra::{Isometry3, Vector3};
+
+    use super::along;
+
+    #[test]
+    fn along_runs_from_the_first_pose_to_the_second() {
+        let t_w1 = Isometry3::new(Vector3::new(1.0, -2.0, 0.5), Vector3::new(0.1, 0.2, -0.3));
+        let t_w2 = t_w1 * Isometry3::new(Vector3::new(0.0, 0.0, 4.0), Vector3::new(0.0, 0.08, 0.0));
+        assert!((along(&t_w1, &t_w2, 0.0).to_homogeneous() - t_w1.to_homogeneous()).norm() < 1e-12);
+        assert!((along(&t_w1, &t_w2, 1.0).to_homogeneous() - t_w2.to_homogeneous()).norm() < 1e-12);
+        let half = t_w1.inverse() * along(&t_w1, &t_w2, 0.5);
+        assert!((half.translation.vector - Vector3::new(0.0, 0.0, 2.0)).norm() < 1e-12);
+        assert!((half.rotation.angle() - 0.04).abs() < 1e-12);
+    }
+}
