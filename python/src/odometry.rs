@@ -189,6 +189,17 @@ impl Odometry {
             .collect()
     }
 
+    /// How many of the most recent frames may still be revised (a caller writing estimates as
+    /// it goes holds them back until `revised` settles them or this falls to 0).
+    #[getter]
+    fn pending(&self) -> PyResult<usize> {
+        Ok(self
+            .tracker
+            .lock()
+            .map_err(|_| failed("the tracker failed on an earlier frame"))?
+            .pending())
+    }
+
     /// Number of frames tracked so far.
     #[getter]
     fn frames(&self) -> usize {

@@ -50,13 +50,16 @@ def test_odometry_tracks_rendered_sequence(sequence, method):
 
 def test_feature_odometry_locates_the_frames_its_initialisation_waited_through(sequence):
     vo = vofront.Odometry("feature", K_RENDER)
-    est, late = [], {}
+    est, late, pending = [], {}, []
     for stamp, img, _ in frames(sequence):
         est.append(vo.track(img, timestamp=stamp))
         for frame, revised in vo.revised():
             assert est[frame]["status"] == "lost" and frame not in late
+            assert len(est) - 1 - frame <= pending[-1]  # only pending frames are revised
             late[frame] = revised
+        pending.append(vo.pending)
     assert late, [e["status"] for e in est]
+    assert max(pending) >= len(late) and pending[-1] == 0, pending
     for frame, revised in late.items():
         assert revised["status"] == "ok" and revised["timestamp"] == est[frame]["timestamp"]
         assert revised["quality"]["inliers"] > 0 and revised["pose_quality"] is not None

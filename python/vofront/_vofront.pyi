@@ -161,6 +161,10 @@ class Odometry:
         initialisation waits through ``lost``, then locates them once its map exists. Each
         list is handed over once."""
     @property
+    def pending(self) -> int:
+        """How many of the most recent frames may still be revised (hold them back when
+        writing estimates as they come)."""
+    @property
     def frames(self) -> int:
         """Frames tracked so far."""
 
