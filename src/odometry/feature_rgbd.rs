@@ -222,15 +222,7 @@ impl Tracker for FeatureRgbdTracker {
             first_residual,
         };
         self.slot.motion.update(t_wc);
-        let quality = FrameQuality {
-            inliers: fit.inlier_count(),
-            inlier_ratio: fit.inlier_count() as f64 / matches.len().max(1) as f64,
-            rmse: fit.rmse_px,
-            iterations: fit.iterations,
-            covariance_trace: fit.covariance.map(|c| c.trace()),
-            keyframe: false,
-            ms: 0.0,
-        };
+        let quality = FrameQuality::of_pnp(&fit, matches.len());
         let keyframe = if self.cfg.keyframe.needs_keyframe(&view) {
             match self.make_keyframe(frame, features, t_wc) {
                 Ok(new_kf) => {

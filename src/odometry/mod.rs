@@ -83,6 +83,22 @@ pub struct FrameQuality {
     pub ms: f64,
 }
 
+impl FrameQuality {
+    /// The scores of a PnP location `fit` among `matches` candidate matches (`keyframe` false
+    /// and `ms` 0, for the caller to set).
+    pub(crate) fn of_pnp(fit: &PnpResult, matches: usize) -> Self {
+        Self {
+            inliers: fit.inlier_count(),
+            inlier_ratio: fit.inlier_count() as f64 / matches.max(1) as f64,
+            rmse: fit.rmse_px,
+            iterations: fit.iterations,
+            covariance_trace: fit.covariance.map(|c| c.trace()),
+            keyframe: false,
+            ms: 0.0,
+        }
+    }
+}
+
 /// A tracker's answer for one frame (`Serialize`: `pose_wc` is
 /// `{"rotation": [qi, qj, qk, qw], "translation": [x, y, z]}`, nalgebra's layout).
 #[derive(Debug, Clone, PartialEq, serde::Serialize)]

@@ -6,7 +6,7 @@ use std::time::Instant;
 use nalgebra::Isometry3;
 use vofront_features::Features;
 
-use super::map::{LocalMap, PointId};
+use super::map::LocalMap;
 use super::{MonoTracker, WIDE_WINDOW_FACTOR};
 use crate::odometry::{FrameEstimate, FrameQuality, Located, PointLocator, TrackStatus};
 
@@ -79,23 +79,14 @@ impl MonoTracker {
         let scale_factor = self.cfg.orb.scale_factor;
         waited
             .iter()
-            .filter(|(frame, _)| (since + 1..now).contains(frame))
             .filter_map(|(frame, features)| {
                 let start = Instant::now();
                 let predicted = along(t_w1, t_wn, (frame - since) as f64 / span);
-                let (query, positions, _): (Features, _, Vec<PointId>) =
+                let (query, positions, _) =
                     map.project_points(&self.camera, &predicted.inverse(), size, scale_factor);
                 let located = self.locate_in_map(&query, &positions, features, predicted);
                 let fit = located.fit.ok()?;
-                let quality = FrameQuality {
-                    inliers: fit.inlier_count(),
-                    inlier_ratio: fit.inlier_count() as f64 / located.matches.len().max(1) as f64,
-                    rmse: fit.rmse_px,
-                    iterations: fit.iterations,
-                    covariance_trace: fit.covariance.map(|c| c.trace()),
-                    keyframe: false,
-                    ms: 0.0,
-                };
+                let quality = FrameQuality::of_pnp(&fit, located.matches.len());
                 let estimate = Self::estimate(
                     fit.pose.inverse(),
                     TrackStatus::Ok,

@@ -271,20 +271,15 @@ impl MonoTracker {
         );
         // A weakly supported pose may be wrong; as a keyframe it would build new points on
         // that error, and later frames would agree with them: it only tracks.
-        let ratio = fit.inlier_count() as f64 / matches.len().max(1) as f64;
-        let supported = fit.inlier_count() >= self.cfg.min_keyframe_inliers
-            || ratio >= self.cfg.keyframe_clean_ratio;
+        let pnp_quality = FrameQuality::of_pnp(&fit, matches.len());
+        let supported = pnp_quality.inliers >= self.cfg.min_keyframe_inliers
+            || pnp_quality.inlier_ratio >= self.cfg.keyframe_clean_ratio;
         let keyframe = supported
             && (parallax >= self.cfg.keyframe_parallax_deg
                 || self.cfg.keyframe.needs_keyframe(&view));
         let quality = FrameQuality {
-            inliers: fit.inlier_count(),
-            inlier_ratio: ratio,
-            rmse: fit.rmse_px,
-            iterations: fit.iterations,
-            covariance_trace: fit.covariance.map(|c| c.trace()),
             keyframe,
-            ms: 0.0,
+            ..pnp_quality
         };
         let first_residual = if keyframe {
             let rules = self.map_rules();
