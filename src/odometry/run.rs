@@ -111,15 +111,11 @@ impl RunSummary {
 
     /// Sets `mean_ms` from the frames of `records` that were read.
     fn set_mean_ms(&mut self, records: &[FrameRecord]) {
-        let ms: Vec<f64> = records
+        let (sum, read) = records
             .iter()
-            .filter_map(|r| r.estimate.as_ref().ok().map(|e| e.quality.ms))
-            .collect();
-        self.mean_ms = if ms.is_empty() {
-            0.0
-        } else {
-            ms.iter().sum::<f64>() / ms.len() as f64
-        };
+            .filter_map(|r| r.estimate.as_ref().ok())
+            .fold((0.0, 0usize), |(sum, n), e| (sum + e.quality.ms, n + 1));
+        self.mean_ms = if read > 0 { sum / read as f64 } else { 0.0 };
     }
 
     /// Frames per second of tracking time (`1000 / mean_ms`), `None` when no frame was read.

@@ -11,7 +11,7 @@ use super::{MonoTracker, WIDE_WINDOW_FACTOR};
 use crate::odometry::{FrameEstimate, FrameQuality, Located, PointLocator, TrackStatus};
 
 /// The message of a frame located after the initialisation it waited for.
-pub(super) const LATE_MESSAGE: &str = "located once the map was initialised (waited for parallax)";
+const LATE_MESSAGE: &str = "located once the map was initialised (waited for parallax)";
 
 /// The pose a fraction `f` of the way along the screw motion from `t_w1` to `t_w2`:
 /// `T_w1 exp(f log(T_w1^-1 T_w2))`, with the rotation and translation interpolated apart.

@@ -88,7 +88,6 @@ enum State {
     Initialising {
         reference: Features,
         t_wc: Isometry3<f64>,
-        frames: usize,
         since: usize,
         waited: Vec<(usize, Features)>,
     },
@@ -223,7 +222,6 @@ impl MonoTracker {
                     self.state = State::Initialising {
                         reference: current,
                         t_wc: predicted,
-                        frames: 0,
                         since: self.frame,
                         waited: Vec::new(),
                     };
@@ -499,7 +497,6 @@ impl MonoTracker {
                 self.state = State::Initialising {
                     reference: current,
                     t_wc: predicted,
-                    frames: 0,
                     since: self.frame,
                     waited: Vec::new(),
                 };
@@ -518,32 +515,31 @@ impl MonoTracker {
             State::Initialising {
                 reference,
                 t_wc,
-                frames,
                 since,
                 mut waited,
             } => {
                 let rules = self.init_rules();
-                let pair = (self.frame - frames - 1, self.frame);
-                match initialise(&rules, &reference, &t_wc, &current, pair) {
+                let elapsed = self.frame - since;
+                match initialise(&rules, &reference, &t_wc, &current, (since, self.frame)) {
                     Ok((map, quality, pose_quality)) => {
                         let estimate = self
-                            .start_map(map, &t_wc, frames + 1, quality, start)
+                            .start_map(map, &t_wc, elapsed, quality, start)
                             .judged(pose_quality);
                         if let State::Tracking { map, .. } = &self.state {
                             let size = frame.image().dimensions();
-                            let ends = ((since, &t_wc), (self.frame, &estimate.pose_wc));
-                            self.revised = self.locate_waited(map, &waited, ends.0, ends.1, size);
+                            let now = (self.frame, &estimate.pose_wc);
+                            self.revised =
+                                self.locate_waited(map, &waited, (since, &t_wc), now, size);
                         }
                         estimate
                     }
                     Err(failure) => {
-                        let keep = failure.keep_reference && frames < self.cfg.max_init_frames;
+                        let keep = failure.keep_reference && elapsed <= self.cfg.max_init_frames;
                         self.state = if keep {
                             waited.push((self.frame, current));
                             State::Initialising {
                                 reference,
                                 t_wc,
-                                frames: frames + 1,
                                 since,
                                 waited,
                             }
@@ -551,7 +547,6 @@ impl MonoTracker {
                             State::Initialising {
                                 reference: current,
                                 t_wc: predicted,
-                                frames: 0,
                                 since: self.frame,
                                 waited: Vec::new(),
                             }
