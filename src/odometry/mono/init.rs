@@ -2,9 +2,10 @@
 //!
 //! The reference frame (pose `T_w1`) and the current frame are matched and
 //! [`estimate_relative_pose`] gives `T_21` with unit baseline; once the median parallax and
-//! the number of triangulated points suffice, both frames become keyframes and the points (in
-//! units of that baseline, which fixes the arbitrary scale) the map. A rotation-dominant start
-//! keeps waiting for parallax; a reference that no longer matches is given up.
+//! the number of triangulated points suffice and the two-view pose is judged `ok`, both frames
+//! become keyframes and the points (in units of that baseline, which fixes the arbitrary
+//! scale) the map. A rotation-dominant start, or a pose judged `unreliable`, keeps waiting for
+//! parallax; a reference that no longer matches is given up.
 //!
 //! After a loss the new map is placed at the motion model's pose `T_w1` and scaled about the
 //! reference camera centre `C_1` by `s = median(|P_old - C_1| / |P_new - C_1|)` over old
@@ -87,6 +88,15 @@ pub(super) fn initialise(
         return Err(wait(format!(
             "initialising: parallax {:.2} deg",
             rel.parallax_deg
+        )));
+    }
+    // A pose judged unreliable for another reason (its rotation uncertain by degrees, a
+    // planar twin as likely, few inliers among the matches) would build a distorted map that
+    // every later frame agrees with; more parallax may settle it, so the reference is kept.
+    if rel.quality.verdict == Verdict::Unreliable {
+        return Err(wait(format!(
+            "initialising: two-view pose unreliable: {}",
+            reasons_text(&rel.quality)
         )));
     }
     if rel.triangulated() < rules.min_points {
