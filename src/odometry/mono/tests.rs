@@ -45,6 +45,13 @@ fn uniform_from(seed: u64) -> impl FnMut() -> f64 {
     }
 }
 
+/// `n` distinct descriptors: each matches only its own copy exactly.
+fn distinct_descriptors(n: usize) -> Vec<Descriptor> {
+    (0..n as u64)
+        .map(|j| Descriptor([j.wrapping_mul(0x9e37_79b9_7f4a_7c15), j, !j, j << 7]))
+        .collect()
+}
+
 /// When tracking against the map fails, the frame is not lost: a new map is made at once
 /// from it and a keyframe of the window, placed at that keyframe's pose with the old map's
 /// scale, and the next frame is tracked on it.
@@ -126,9 +133,7 @@ fn random_matches_make_no_map() -> TestResult {
         let n = 300;
         let xs = (0..n).map(|_| uniform() as f32 * w).collect();
         let ys = (0..n).map(|_| uniform() as f32 * h).collect();
-        let descriptors = (0..n as u64)
-            .map(|j| Descriptor([j.wrapping_mul(0x9e37_79b9_7f4a_7c15), j, !j, j << 7]))
-            .collect();
+        let descriptors = distinct_descriptors(n);
         level0_features(xs, ys, descriptors)
     };
     let (reference, current) = (features()?, features()?);
@@ -184,9 +189,7 @@ fn an_unreliable_two_view_pose_waits_instead_of_making_a_map() -> TestResult {
         x2.push(nalgebra::Vector2::new(uniform() * w, uniform() * h));
     }
     let features = |xs: &[nalgebra::Vector2<f64>], n: usize| {
-        let descriptors = (0..n as u64)
-            .map(|j| Descriptor([j.wrapping_mul(0x9e37_79b9_7f4a_7c15), j, !j, j << 7]))
-            .collect();
+        let descriptors = distinct_descriptors(n);
         level0_features(
             xs[..n].iter().map(|u| u.x as f32).collect(),
             xs[..n].iter().map(|u| u.y as f32).collect(),
