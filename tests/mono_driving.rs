@@ -1,15 +1,15 @@
 //! The monocular tracker on the rendered driving sequence (10 Hz, 1 m per frame, a straight
 //! stretch then a 90 degree right turn between facades and parked boxes): every frame is
-//! tracked (the frames the initialisation waits through are located late, once its map
-//! exists) and the Sim(3)-aligned trajectory stays within 0.5% of the path length, issue 13's
-//! target (measured: 0.36% over every frame; over the frames after the initialisation 0.33%
-//! with three keyframes fixed in the local bundle adjustment, 0.48% with two, 0.31% before the adjustment's gate was floored at half
-//! a pixel, 0.60% before keypoint-level noise scales and level prediction, 1.05% before the
-//! local bundle adjustment). The rendered corners are more precise than real ones: over
-//! RANSAC seeds 0-7 the floor raised this sequence's median from 0.37% to 0.46%, while on the
-//! real KITTI clips it lowered every median (`kitti_06` ATE 0.145 -> 0.092 m over 12 seeds);
-//! the third fixed keyframe lowered it to 0.40% (worst seed 1.25% -> 0.70%). After a segment
-//! break the new map keeps the speed of the old one.
+//! tracked (the frames the initialisation waits through are located late, once its map exists)
+//! and the Sim(3)-aligned trajectory stays within 0.5% of the path length, issue 13's target
+//! (measured: 0.36% over every frame; over the frames after the initialisation 0.33% with three
+//! keyframes fixed in the local bundle adjustment, 0.48% with two, 0.31% before the
+//! adjustment's gate was floored at half a pixel, 0.60% before keypoint-level noise scales and
+//! level prediction, 1.05% before the local bundle adjustment). The rendered corners are more
+//! precise than real ones: over RANSAC seeds 0-7 the floor raised this sequence's median from
+//! 0.37% to 0.46%, while on the real KITTI clips it lowered every median (`kitti_06` ATE 0.145
+//! -> 0.092 m over 12 seeds); the third fixed keyframe lowered it to 0.40% (worst seed 1.25% ->
+//! 0.70%). After a segment break the new map keeps the speed of the old one.
 
 use vofront::dataset::Frame;
 use vofront::eval::{ate, rpe, Alignment, EvalConfig};
