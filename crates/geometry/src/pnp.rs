@@ -25,7 +25,7 @@ use crate::camera::Camera;
 use crate::error::GeometryError;
 use crate::lie::{point_jacobian, retract_left};
 use crate::p3p::p3p;
-use crate::ransac::{ransac, Estimator, RansacConfig};
+use crate::ransac::{ransac_from, Estimator, RansacConfig};
 
 /// Minimum correspondences: three for P3P plus one to choose among its solutions.
 const MIN_POINTS: usize = 4;
@@ -222,9 +222,8 @@ fn reprojection_px(camera: &Camera, t: &Isometry3<f64>, p: &Point3<f64>, u: &Vec
 
 /// Estimates the camera pose `T_cw` from world points and their observed (distorted) pixels:
 /// P3P in LO-MSAC (threshold `ransac.threshold / f` in normalized coordinates; local optimisation
-/// by a few Huber IRLS steps on the inliers), an optional prior
-/// pose competing with the hypotheses, then Huber IRLS on the pixel reprojection error of the
-/// inliers.
+/// by a few Huber IRLS steps on the inliers), an optional prior pose as its first hypothesis
+/// ([`ransac_from`]), then Huber IRLS on the pixel reprojection error of the inliers.
 ///
 /// ```
 /// use nalgebra::{Isometry3, Point3, Vector3};
@@ -334,17 +333,10 @@ pub fn solve_pnp_ransac_with_sigmas(
         sigma_px: cfg.sigma_px,
     };
     let rcfg = cfg.ransac.in_normalized_units(focal);
-    let thr = rcfg.threshold;
-    let found = ransac(&est, &rcfg);
+    let guess = prior.filter(|p| p.to_homogeneous().iter().all(|v| v.is_finite()));
+    let found = ransac_from(&est, &rcfg, guess);
     let iterations = found.as_ref().map_or(0, |r| r.iterations);
-    let mut best = found.map(|r| (r.model, r.score));
-    if let Some(p) = prior.filter(|p| p.to_homogeneous().iter().all(|v| v.is_finite())) {
-        let (score, _) = est.score(&p, thr * thr, f64::INFINITY);
-        if best.as_ref().map_or(true, |b| score < b.1) {
-            best = Some((p, score));
-        }
-    }
-    let (mut pose, _) = best.ok_or(GeometryError::NoModel {
+    let mut pose = found.map(|r| r.model).ok_or(GeometryError::NoModel {
         best: 0,
         need: cfg.min_inliers,
     })?;

@@ -256,6 +256,18 @@ impl<M> LocalOptimisation<M> {
 /// assert!((res.model - 1.0125).abs() < 1e-9);
 /// ```
 pub fn ransac<E: Estimator>(est: &E, cfg: &RansacConfig) -> Option<RansacResult<E::Model>> {
+    ransac_from(est, cfg, None)
+}
+
+/// [`ransac`] with a first hypothesis `guess` (a predicted or previously found model), scored
+/// and polished as a minimal-sample model drawn before the first sample: a good guess sets
+/// the bar that later minimal models must beat to be polished, so fewer are; a wrong one is
+/// beaten like any wrong hypothesis. `min_iterations` samples are still drawn.
+pub fn ransac_from<E: Estimator>(
+    est: &E,
+    cfg: &RansacConfig,
+    guess: Option<E::Model>,
+) -> Option<RansacResult<E::Model>> {
     let n = est.len();
     let s = est.sample_size();
     if n < s || s == 0 {
@@ -278,10 +290,8 @@ pub fn ransac<E: Estimator>(est: &E, cfg: &RansacConfig) -> Option<RansacResult<
     // Iterations the best confirmed model asks for; the cap until one is confirmed.
     let mut needed = cfg.max_iterations;
     let mut iterations = 0;
-    while iterations < needed.max(cfg.min_iterations).min(cfg.max_iterations) {
-        iterations += 1;
-        draw_sample(&mut rng, &mut pool, s, &mut sample);
-        est.fit_minimal(&sample, &mut models);
+    models.extend(guess);
+    loop {
         for m in models.drain(..) {
             let (score, count) = est.score(&m, threshold_sq, best_minimal);
             if score >= best_minimal {
@@ -297,6 +307,12 @@ pub fn ransac<E: Estimator>(est: &E, cfg: &RansacConfig) -> Option<RansacResult<
             }
             best = Some(current);
         }
+        if iterations >= needed.max(cfg.min_iterations).min(cfg.max_iterations) {
+            break;
+        }
+        iterations += 1;
+        draw_sample(&mut rng, &mut pool, s, &mut sample);
+        est.fit_minimal(&sample, &mut models);
     }
     let (model, score, _) = best?;
     let inliers: Vec<bool> = (0..n)
@@ -435,6 +451,34 @@ mod tests {
         };
         let res = ransac(&Unconfirmable(data()), &no_lo).expect("a model");
         assert_eq!(res.iterations, cfg.min_iterations);
+    }
+
+    #[test]
+    fn a_guess_is_polished_first_and_a_wrong_one_is_beaten() {
+        let d = data();
+        let cfg = RansacConfig {
+            threshold: 0.1,
+            ..Default::default()
+        };
+        // With no sample drawn, a guess near the line comes back refitted on its inliers.
+        let none_drawn = RansacConfig {
+            min_iterations: 0,
+            max_iterations: 0,
+            ..cfg
+        };
+        let guess = (2.02, 0.95);
+        let polished = ransac_from(&d, &none_drawn, Some(guess)).expect("the guess");
+        assert_eq!(polished.iterations, 0);
+        assert_ne!(polished.model, guess);
+        assert!((polished.model.0 - 2.0).abs() < 0.01 && (polished.model.1 - 1.0).abs() < 0.05);
+        assert!(polished.inlier_count() >= 60);
+        assert!(ransac(&d, &none_drawn).is_none());
+        // A wrong guess loses to the sampled line.
+        let beaten = ransac_from(&d, &cfg, Some((-1.0, 30.0))).expect("a model");
+        let plain = ransac(&d, &cfg).expect("a model");
+        assert!((beaten.model.0 - 2.0).abs() < 0.01 && (beaten.model.1 - 1.0).abs() < 0.05);
+        assert_eq!(beaten.inlier_count(), plain.inlier_count());
+        assert_eq!(beaten.iterations, cfg.min_iterations);
     }
 
     #[test]
