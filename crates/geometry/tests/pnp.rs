@@ -189,6 +189,30 @@ fn prior_is_used_when_it_is_the_best_hypothesis() {
     assert_eq!(res.inlier_count(), 50);
 }
 
+/// A wrong prior is only the first hypothesis: the sampled pose beats it, on every scene.
+#[test]
+fn a_wrong_prior_loses_to_the_sampled_pose() {
+    let cam = common::camera();
+    for seed in 0..20 {
+        let (t_cw, world, px, _) = pnp_scene(seed, 80, 0.3, 0.5, &cam);
+        let wrong =
+            Isometry3::new(Vector3::new(0.3, 0.0, -0.2), Vector3::new(0.0, 0.35, 0.0)) * t_cw;
+        let cfg = PnpConfig::default();
+        let with_prior = solve_pnp_ransac(&world, &px, &cam, Some(wrong), &cfg).unwrap();
+        let without = solve_pnp_ransac(&world, &px, &cam, None, &cfg).unwrap();
+        let (e_prior, e_none) = (
+            pose_error(&t_cw, &with_prior.pose),
+            pose_error(&t_cw, &without.pose),
+        );
+        assert!(e_prior < 0.5, "seed {seed}: {e_prior} from the wrong prior");
+        assert!(
+            (e_prior - e_none).abs() < 0.05,
+            "seed {seed}: {e_prior} vs {e_none}"
+        );
+        assert!(with_prior.inlier_count() >= 50, "seed {seed}");
+    }
+}
+
 #[test]
 fn pnp_bad_input_gives_typed_errors() {
     let cam = common::camera();
