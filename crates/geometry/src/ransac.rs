@@ -187,6 +187,11 @@ fn inlier_indices<E: Estimator>(
 /// A scored hypothesis: model, MSAC score, inlier count.
 type Scored<M> = (M, f64, usize);
 
+/// Relative margin within which a refit's score reproduces the score of the model it started
+/// from: a model already at the refit's optimum (a guess that is a previous estimate) comes
+/// back with its score changed only by rounding (measured: 2e-10 relative), and is confirmed.
+const REPRODUCED: f64 = 1e-6;
+
 /// Scratch buffers of the local optimisation.
 struct LocalOptimisation<M> {
     inliers: Vec<usize>,
@@ -196,7 +201,7 @@ struct LocalOptimisation<M> {
 impl<M> LocalOptimisation<M> {
     /// Refines `current` for up to `rounds` rounds (refit on the inliers, keep a lower score);
     /// returns the result and whether it is confirmed: some refit on its inliers scored no
-    /// worse than the model it started from.
+    /// worse than the model it started from (within [`REPRODUCED`]).
     fn run<E: Estimator<Model = M>>(
         &mut self,
         est: &E,
@@ -215,9 +220,10 @@ impl<M> LocalOptimisation<M> {
             }
             est.refine(&current.0, &self.inliers, &mut self.models);
             let mut improved = false;
+            let reproduced = current.1 * (1.0 + REPRODUCED);
             for m in self.models.drain(..) {
-                let (score, count) = est.score(&m, threshold_sq, current.1);
-                if score <= current.1 {
+                let (score, count) = est.score(&m, threshold_sq, reproduced);
+                if score <= reproduced {
                     confirmed = true;
                     if score < current.1 {
                         current = (m, score, count);

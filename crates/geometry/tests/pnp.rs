@@ -213,6 +213,22 @@ fn a_wrong_prior_loses_to_the_sampled_pose() {
     }
 }
 
+/// The pose found before, given back as the prior, is at the refinement's optimum: local
+/// optimisation reproduces it up to rounding, which confirms it, and the search stops at the
+/// minimum instead of running to the cap.
+#[test]
+fn a_located_prior_ends_the_search_at_the_minimum() {
+    let cam = common::camera();
+    let cfg = PnpConfig::default();
+    for seed in 0..10 {
+        let (_, world, px, _) = pnp_scene(seed, 120, 0.2, 0.7, &cam);
+        let first = solve_pnp_ransac(&world, &px, &cam, None, &cfg).unwrap();
+        let again = solve_pnp_ransac(&world, &px, &cam, Some(first.pose), &cfg).unwrap();
+        assert_eq!(again.iterations, cfg.ransac.min_iterations, "seed {seed}");
+        assert_eq!(again.inlier_count(), first.inlier_count(), "seed {seed}");
+    }
+}
+
 #[test]
 fn pnp_bad_input_gives_typed_errors() {
     let cam = common::camera();
