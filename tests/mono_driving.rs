@@ -2,7 +2,7 @@
 //! stretch then a 90 degree right turn between facades and parked boxes): every frame is
 //! tracked (the frames the initialisation waits through are located late, once its map exists)
 //! and the Sim(3)-aligned trajectory stays within 0.5% of the path length, issue 13's target
-//! (measured: 0.36% over every frame; over the frames after the initialisation 0.33% with three
+//! (measured: 0.35% over every frame; over the frames after the initialisation 0.33% with three
 //! keyframes fixed in the local bundle adjustment, 0.48% with two, 0.31% before the
 //! adjustment's gate was floored at half a pixel, 0.60% before keypoint-level noise scales and
 //! level prediction, 1.05% before the local bundle adjustment). The rendered corners are more
