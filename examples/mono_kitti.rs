@@ -2,9 +2,12 @@
 //! sequence with the default [`MonoTracker`], evaluates against its ground truth and prints one
 //! JSON line per sequence: frames tracked, ATE after Sim(3) alignment (metres and percent of
 //! the path), scale-free per-frame rotation error (RPE rmse, degrees) and frames per second
-//! (tracking only, image decoding excluded), and where a frame's time goes: `orb_ms` (ORB
+//! (tracking only, image decoding excluded), where a frame's time goes: `orb_ms` (ORB
 //! detection and description alone, timed in a separate pass over the same frames) and
-//! `track_ms` (the whole tracker per frame, ORB included).
+//! `track_ms` (the whole tracker per frame, ORB included), and `rot_scale`, the least-squares
+//! factor of the estimated over the true per-frame rotations, with its standard deviation
+//! `rot_scale_sigma` (`RotationScale`: 1 when the calibration agrees with the ground truth;
+//! `null` when the ground truth does not rotate).
 //!
 //!     cargo run --release --example mono_kitti -- [--seeds N] [DATASET ...]
 //!
@@ -70,6 +73,7 @@ struct Score {
     tracked: usize,
     ate_m: f64,
     rpe_rot_deg: f64,
+    rot_scale: Option<f64>,
 }
 
 /// Runs `bench` with the RANSAC seeds `0..n` and prints the summary line.
@@ -81,14 +85,17 @@ fn sweep(dir: &std::path::Path, n: u64) -> Result<(), String> {
     let worst = |v: &[f64]| v.iter().copied().fold(f64::NEG_INFINITY, f64::max);
     let ate: Vec<f64> = scores.iter().map(|s| s.ate_m).collect();
     let rot: Vec<f64> = scores.iter().map(|s| s.rpe_rot_deg).collect();
+    let rot_scale: Vec<f64> = scores.iter().filter_map(|s| s.rot_scale).collect();
+    let rot_scale = (!rot_scale.is_empty()).then(|| format!("{:.4}", median(rot_scale)));
     println!(
-        "{{\"dataset\": \"{}\", \"summary\": true, \"seeds\": {n}, \"ate_m_median\": {:.4}, \"ate_m_worst\": {:.4}, \"rpe_rot_deg_median\": {:.4}, \"rpe_rot_deg_worst\": {:.4}, \"tracked_fewest\": {}}}",
+        "{{\"dataset\": \"{}\", \"summary\": true, \"seeds\": {n}, \"ate_m_median\": {:.4}, \"ate_m_worst\": {:.4}, \"rpe_rot_deg_median\": {:.4}, \"rpe_rot_deg_worst\": {:.4}, \"tracked_fewest\": {}, \"rot_scale_median\": {}}}",
         dir.display(),
         median(ate.clone()),
         worst(&ate),
         median(rot.clone()),
         worst(&rot),
         scores.iter().map(|s| s.tracked).min().unwrap_or(0),
+        rot_scale.as_deref().unwrap_or("null"),
     );
     Ok(())
 }
@@ -148,9 +155,10 @@ fn bench(dir: &std::path::Path, seed: Option<u64>) -> Result<Score, String> {
         .windows(2)
         .map(|w| (w[1].1.translation.vector - w[0].1.translation.vector).norm())
         .sum();
+    let rot_scale = r.rotation_scale;
     let keyframes = estimates.iter().filter(|e| e.quality.keyframe).count();
     println!(
-        "{{\"dataset\": \"{}\", \"seed\": {}, \"frames\": {}, \"tracked\": {}, \"keyframes\": {}, \"ate_m\": {:.4}, \"path_m\": {:.2}, \"ate_percent\": {:.3}, \"rpe_rot_deg\": {:.4}, \"fps\": {:.1}, \"orb_ms\": {:.1}, \"track_ms\": {:.1}}}",
+        "{{\"dataset\": \"{}\", \"seed\": {}, \"frames\": {}, \"tracked\": {}, \"keyframes\": {}, \"ate_m\": {:.4}, \"path_m\": {:.2}, \"ate_percent\": {:.3}, \"rpe_rot_deg\": {:.4}, \"fps\": {:.1}, \"orb_ms\": {:.1}, \"track_ms\": {:.1}, \"rot_scale\": {}, \"rot_scale_sigma\": {}}}",
         dir.display(),
         seed.map_or_else(|| "null".into(), |s| s.to_string()),
         frames.len(),
@@ -163,10 +171,13 @@ fn bench(dir: &std::path::Path, seed: Option<u64>) -> Result<Score, String> {
         frames.len() as f64 / seconds.max(1e-9),
         orb_ms,
         1e3 * seconds / frames.len().max(1) as f64,
+        rot_scale.map_or_else(|| "null".into(), |k| format!("{:.4}", k.scale)),
+        rot_scale.map_or_else(|| "null".into(), |k| format!("{:.4}", k.sigma)),
     );
     Ok(Score {
         tracked: trajectory.len(),
         ate_m: a.stats.rmse,
         rpe_rot_deg: r.rotation_deg.rmse,
+        rot_scale: rot_scale.map(|k| k.scale),
     })
 }

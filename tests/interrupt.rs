@@ -278,6 +278,11 @@ fn json_summary_names_the_run_and_its_outputs() {
         json["rpe"]["rotation_deg"]["rmse"].as_f64().is_some(),
         "{json}"
     );
+    // An accurate track turns as much as the truth, within its uncertainty.
+    let turn = &json["rpe"]["rotation_scale"];
+    let (scale, sigma) = (turn["scale"].as_f64(), turn["sigma"].as_f64());
+    let (scale, sigma) = (scale.expect("scale"), sigma.expect("sigma"));
+    assert!((scale - 1.0).abs() < 4.0 * sigma + 0.01, "{json}");
 }
 
 #[test]

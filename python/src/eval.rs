@@ -121,8 +121,10 @@ pub fn ate<'py>(
 
 /// Relative pose error over consecutive associated poses, as
 /// `evo_rpe tum gt est --delta 1 --delta_unit f`: a dict with `translation` (metres) and
-/// `rotation_deg` statistics and `pairs`. A rigid alignment leaves relative poses unchanged,
-/// so only `align="sim3"` (scale) changes the result, as in `vofront eval`.
+/// `rotation_deg` statistics, `rotation_scale` (`{"scale", "sigma"}`: the least-squares factor
+/// of the estimated over the true relative rotations and its standard deviation, `None` when
+/// the ground truth does not rotate) and `pairs`. A rigid alignment leaves relative poses
+/// unchanged, so only `align="sim3"` (scale) changes the result, as in `vofront eval`.
 #[pyfunction]
 #[pyo3(signature = (gt, est, align = Some("se3"), max_dt = 0.01))]
 #[pyo3(text_signature = "(gt, est, align=\"se3\", max_dt=0.01)")]
@@ -145,6 +147,16 @@ pub fn rpe<'py>(
     let d = PyDict::new(py);
     d.set_item("translation", stats_dict(py, &r.translation)?)?;
     d.set_item("rotation_deg", stats_dict(py, &r.rotation_deg)?)?;
+    let turn = match r.rotation_scale {
+        Some(k) => {
+            let t = PyDict::new(py);
+            t.set_item("scale", k.scale)?;
+            t.set_item("sigma", k.sigma)?;
+            Some(t)
+        }
+        None => None,
+    };
+    d.set_item("rotation_scale", turn)?;
     d.set_item("pairs", r.pairs.len())?;
     Ok(d)
 }

@@ -115,6 +115,9 @@ def test_ate_rpe_equal_cli_eval(sequence, tmp_path):
         for part in ("translation", "rotation_deg"):
             for k, v in expected["rpe"][part].items():
                 assert rpe[part][k] == pytest.approx(v, rel=1e-9, abs=1e-15), (part, k)
+        for k in ("scale", "sigma"):
+            v = expected["rpe"]["rotation_scale"][k]
+            assert rpe["rotation_scale"][k] == pytest.approx(v, rel=1e-9, abs=1e-15), k
 
 
 def random_trajectory(n=30, seed=0):
@@ -144,6 +147,7 @@ def test_rpe_of_identical_trajectories_is_zero():
     out = vofront.rpe(gt, gt)
     assert out["translation"]["max"] < 1e-12 and out["rotation_deg"]["max"] < 1e-6
     assert out["pairs"] == 30
+    assert out["rotation_scale"]["scale"] == pytest.approx(1.0, abs=1e-9)
 
 
 def test_eval_bad_inputs(tmp_path):

@@ -198,4 +198,5 @@ def rpe(
     max_dt: float = 0.01,
 ) -> dict[str, Any]:
     """Relative pose error per frame as ``evo_rpe --delta 1``: ``translation`` (metres) and
-    ``rotation_deg`` statistics, ``pairs``."""
+    ``rotation_deg`` statistics, ``rotation_scale`` (``{"scale", "sigma"}``: estimated over
+    true rotation, 1 when the calibration agrees; ``None`` without true rotation), ``pairs``."""

@@ -52,7 +52,7 @@ pub mod umeyama;
 use nalgebra::Isometry3;
 use thiserror::Error;
 
-pub use rpe::{rpe, rpe_with, DeltaUnit, RpeConfig, RpeResult};
+pub use rpe::{rpe, rpe_with, DeltaUnit, RotationScale, RpeConfig, RpeResult};
 pub use umeyama::{umeyama, Sim3};
 
 use crate::trajectory::{associate, Trajectory};

@@ -13,7 +13,7 @@
 //!   `delta_tol * d` of it. evo v1.38.1 has no seconds unit; here it follows the metre rule
 //!   with time in place of path.
 
-use nalgebra::Isometry3;
+use nalgebra::{Isometry3, Vector3};
 
 use super::{associate_and_align, Alignment, EvalConfig, EvalError, Stats};
 use crate::trajectory::Trajectory;
@@ -88,6 +88,49 @@ pub struct RpeResult {
     pub translation: Stats,
     /// Statistics of the rotation errors (degrees).
     pub rotation_deg: Stats,
+    /// How the estimate's relative rotations compare in size with the ground truth's over
+    /// the compared pairs (`None` when the ground truth does not rotate or there are fewer
+    /// than two pairs).
+    pub rotation_scale: Option<RotationScale>,
+}
+
+/// The least-squares factor between estimated and true relative rotations: with
+/// `g_k = log(rot(Q_i^-1 Q_j))` and `e_k = log(rot(P_i^-1 P_j))` the rotation vectors (radians,
+/// in camera `i`'s frame) of the compared pairs, `scale = sum_k g_k . e_k / sum_k |g_k|^2`
+/// minimises `sum_k |e_k - scale g_k|^2`, and `sigma = sqrt(sum_k |e_k - scale g_k|^2 /
+/// (3n - 1) / sum_k |g_k|^2)` is its standard deviation from the scatter of the residuals when
+/// the pairs are independent (overlapping pairs, as `all_pairs` picks them for a delta above one
+/// frame, share their errors and make it too small).
+///
+/// Noise with zero mean leaves `scale` at 1. A pinhole focal length off by a factor `k` shrinks
+/// a feature tracker's pan and tilt (rotations about axes in the image plane) to about `1 / k`
+/// of the truth, so a `scale` several `sigma` from 1 on a turning sequence points at the
+/// calibration (or at the ground truth's heading), which no tracker setting can repair.
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
+pub struct RotationScale {
+    /// Estimated over true rotation, dimensionless.
+    pub scale: f64,
+    /// Standard deviation of `scale`.
+    pub sigma: f64,
+}
+
+impl RotationScale {
+    /// The factor of `(true, estimated)` rotation-vector pairs; `None` with fewer than two
+    /// pairs, no true rotation or a non-finite input.
+    pub fn fit(pairs: &[(Vector3<f64>, Vector3<f64>)]) -> Option<Self> {
+        let n = pairs.len();
+        let gg: f64 = pairs.iter().map(|(g, _)| g.norm_squared()).sum();
+        if n < 2 || gg <= 0.0 {
+            return None;
+        }
+        let scale = pairs.iter().map(|(g, e)| g.dot(e)).sum::<f64>() / gg;
+        let residual: f64 = pairs
+            .iter()
+            .map(|(g, e)| (e - g * scale).norm_squared())
+            .sum();
+        let sigma = (residual / (3 * n - 1) as f64 / gg).sqrt();
+        (scale.is_finite() && sigma.is_finite()).then_some(Self { scale, sigma })
+    }
 }
 
 /// Relative pose error over consecutive associated poses, as
@@ -128,6 +171,7 @@ pub fn rpe_with(
         return Err(EvalError::NoPairs(format!("{d} {}", pairs.unit.symbol())));
     }
     let (mut trans, mut rot, mut times) = (Vec::new(), Vec::new(), Vec::new());
+    let mut rotation_vectors = Vec::with_capacity(delta_pairs.len());
     for &(i, j) in &delta_pairs {
         let q_rel = a.gt[i].1.inverse() * a.gt[j].1;
         let p_rel = a.est[i].1.inverse() * a.est[j].1;
@@ -137,6 +181,7 @@ pub fn rpe_with(
         let angle = 2.0 * quat.xyz().norm().atan2(quat.w.abs());
         rot.push(angle.to_degrees());
         times.push(a.gt[j].0);
+        rotation_vectors.push((q_rel.rotation.scaled_axis(), p_rel.rotation.scaled_axis()));
     }
     Ok(RpeResult {
         pairs: a.pairs,
@@ -146,6 +191,7 @@ pub fn rpe_with(
         rotation_deg: Stats::from_errors(&rot).ok_or(EvalError::NotFinite)?,
         translation_errors: trans,
         rotation_errors_deg: rot,
+        rotation_scale: RotationScale::fit(&rotation_vectors),
     })
 }
 

@@ -4,7 +4,9 @@ use std::path::PathBuf;
 
 use serde::Serialize;
 use vofront::eval::plot::{write_eval_plots, write_plot, PlotFormat};
-use vofront::eval::{ate, rpe_with, Alignment, DeltaUnit, EvalConfig, RpeConfig, Stats};
+use vofront::eval::{
+    ate, rpe_with, Alignment, DeltaUnit, EvalConfig, RotationScale, RpeConfig, Stats,
+};
 use vofront::trajectory::Trajectory;
 
 use crate::args::{AlignArg, DeltaUnitArg, EvalArgs};
@@ -31,6 +33,8 @@ struct RpeSummary {
     pairs: usize,
     translation: Stats,
     rotation_deg: Stats,
+    /// `{"scale", "sigma"}`: estimated over true rotation (`null` without true rotation).
+    rotation_scale: Option<RotationScale>,
 }
 
 fn unit(arg: DeltaUnitArg) -> DeltaUnit {
@@ -94,6 +98,7 @@ pub fn run(args: &EvalArgs) -> Result<(), String> {
                 pairs: rpe.delta_pairs.len(),
                 translation: rpe.translation,
                 rotation_deg: rpe.rotation_deg,
+                rotation_scale: rpe.rotation_scale,
             },
             plots,
         };
@@ -121,6 +126,13 @@ pub fn run(args: &EvalArgs) -> Result<(), String> {
     );
     outln!("RPE trans rmse     {:.6} m {per}", rpe.translation.rmse);
     outln!("RPE rot rmse       {:.6} deg {per}", rpe.rotation_deg.rmse);
+    if let Some(r) = rpe.rotation_scale {
+        outln!(
+            "RPE rot scale      {:.6} +- {:.6} (estimated / true rotation; 1 = consistent)",
+            r.scale,
+            r.sigma
+        );
+    }
     for p in &plots {
         outln!("wrote              {}", p.display());
     }

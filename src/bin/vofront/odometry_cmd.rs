@@ -196,11 +196,20 @@ pub fn report(
         Err(e) => outln!("ATE not computed: {e}"),
     }
     match rpe {
-        Ok(r) => outln!(
-            "RPE rmse {:.4} m, {:.3} deg per frame",
-            r.translation.rmse,
-            r.rotation_deg.rmse
-        ),
+        Ok(r) => {
+            outln!(
+                "RPE rmse {:.4} m, {:.3} deg per frame",
+                r.translation.rmse,
+                r.rotation_deg.rmse
+            );
+            if let Some(k) = r.rotation_scale {
+                outln!(
+                    "rotation scale {:.4} +- {:.4} (estimated / true; 1 = consistent)",
+                    k.scale,
+                    k.sigma
+                );
+            }
+        }
         Err(e) => outln!("RPE not computed: {e}"),
     }
     Ok(())
@@ -232,7 +241,8 @@ fn report_json(
         };
         rpe_json = match rpe {
             Ok(r) => {
-                json!({"translation": json!(r.translation), "rotation_deg": json!(r.rotation_deg)})
+                json!({"translation": json!(r.translation), "rotation_deg": json!(r.rotation_deg),
+                       "rotation_scale": json!(r.rotation_scale)})
             }
             Err(e) => json!({ "error": e }),
         };
