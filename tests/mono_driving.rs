@@ -2,8 +2,10 @@
 //! stretch then a 90 degree right turn between facades and parked boxes): every frame is
 //! tracked (the frames the initialisation waits through are located late, once its map exists)
 //! and the Sim(3)-aligned trajectory stays within 0.5% of the path length, issue 13's target
-//! (measured: 0.35% over every frame; over the frames after the initialisation 0.33% with three
-//! keyframes fixed in the local bundle adjustment, 0.48% with two, 0.31% before the
+//! (measured: 0.33% over every frame and 0.26% to 0.33% over RANSAC seeds 0-11; 0.35% and
+//! 0.22% to 0.93% before a located pose that moved the points by half the matching window was
+//! matched again around itself; earlier, over the frames after the initialisation, 0.33% with
+//! three keyframes fixed in the local bundle adjustment, 0.48% with two, 0.31% before the
 //! adjustment's gate was floored at half a pixel, 0.60% before keypoint-level noise scales and
 //! level prediction, 1.05% before the local bundle adjustment). The rendered corners are more
 //! precise than real ones: over RANSAC seeds 0-7 the floor raised this sequence's median from
@@ -158,4 +160,54 @@ fn a_segment_break_keeps_the_speed_of_the_motion_model() {
         (0.8..1.25).contains(&ratio),
         "steps {new:.4} after the break, {old:.4} before (ratio {ratio:.3})"
     );
+}
+
+/// Issue 13: the start of the turn, 4 degrees of yaw the constant-velocity prediction did not
+/// expect (about 25 px, the matching window's width), is located as precisely as the straight
+/// road before it. The window lets through only a part of the right matches, biased towards
+/// the prediction, and the pose found from them turned by only 2.2 to 3.4 of the 4.1 degrees
+/// on most RANSAC seeds (with a third of the usual inliers), until a pose that moved the
+/// points by half the window or more was matched again around itself.
+#[test]
+fn the_start_of_a_turn_is_located_as_precisely_as_the_straight() {
+    const FRAMES: usize = 30;
+    /// Largest per-frame rotation error, degrees (the frames before the turn stay within 0.2).
+    const MAX_ROTATION_ERROR_DEG: f64 = 0.3;
+    let seq = DrivingSequence::new(11, FRAMES);
+    let images: Vec<_> = (0..FRAMES)
+        .map(|i| to_gray8(&seq.render(i).image))
+        .collect();
+    for seed in 0..4 {
+        let mut cfg = MonoConfig::default();
+        cfg.relative.ransac.seed = seed;
+        cfg.pnp.ransac.seed = seed;
+        let mut tracker = MonoTracker::new(seq.camera, cfg).expect("tracker");
+        let estimates: Vec<_> = images
+            .iter()
+            .enumerate()
+            .map(|(i, image)| {
+                let frame = Frame::new(i as f64 / FRAME_RATE, image.clone(), None).expect("frame");
+                tracker.track(&frame)
+            })
+            .collect();
+        let turn = (1..FRAMES)
+            .find(|&i| seq.relative(i - 1, i).rotation.angle() > 1f64.to_radians())
+            .expect("the sequence turns");
+        for i in turn - 3..FRAMES {
+            assert_eq!(
+                estimates[i].status,
+                TrackStatus::Ok,
+                "seed {seed}, frame {i}"
+            );
+            let truth = seq.relative(i - 1, i).rotation;
+            let est = (estimates[i].pose_wc.inverse() * estimates[i - 1].pose_wc).rotation;
+            let error = truth.angle_to(&est).to_degrees();
+            assert!(
+                error <= MAX_ROTATION_ERROR_DEG,
+                "seed {seed}, frame {i}: rotation off by {error:.2} deg ({:.2} of {:.2})",
+                est.angle().to_degrees(),
+                truth.angle().to_degrees()
+            );
+        }
+    }
 }

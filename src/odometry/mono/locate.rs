@@ -3,8 +3,11 @@
 
 use std::time::Instant;
 
+use crate::robust::median_in_place;
 use nalgebra::Isometry3;
 use vofront_features::Features;
+use vofront_geometry::pnp::PnpResult;
+use vofront_geometry::Camera;
 
 use super::map::LocalMap;
 use super::{MonoTracker, WIDE_WINDOW_FACTOR};
@@ -20,14 +23,43 @@ fn along(t_w1: &Isometry3<f64>, t_w2: &Isometry3<f64>, f: f64) -> Isometry3<f64>
     t_w1 * Isometry3::new(t_12.translation.vector * f, t_12.rotation.scaled_axis() * f)
 }
 
+/// Whether `again` located the frame with more PnP inliers than `first`.
+fn more_inliers(again: &Located, first: &PnpResult) -> bool {
+    again
+        .fit
+        .as_ref()
+        .is_ok_and(|fit| fit.inlier_count() > first.inlier_count())
+}
+
+/// Median over the inliers of `located` of `|pi(T_cw P) - pi(T_located P)|`, pixels: how far
+/// the located pose moved the points from where the prediction `t_cw` put them (`None`
+/// without a location or a projectable inlier).
+fn median_shift_px(camera: &Camera, located: &Located, t_cw: &Isometry3<f64>) -> Option<f64> {
+    let fit = located.fit.as_ref().ok()?;
+    let mut shifts: Vec<f64> = located
+        .points
+        .iter()
+        .zip(&fit.inliers)
+        .filter(|(_, &inlier)| inlier)
+        .filter_map(|(p, _)| {
+            let predicted = camera.project(&(t_cw * p).coords)?;
+            let found = camera.project(&(fit.pose * p).coords)?;
+            Some((predicted - found).norm())
+        })
+        .collect();
+    median_in_place(&mut shifts)
+}
+
 impl MonoTracker {
     /// Locates `current` in the map's points (`query`, `positions`: [`LocalMap::local_points`])
     /// from the prediction `predicted` (`T_wc`): matched within `window_px`, then once more
     /// within `WIDE_WINDOW_FACTOR` times it if that fails (a motion change the prediction
-    /// missed, such as the start of a turn, moves the points out of the window); then the
-    /// points are matched again within `relocate_window_px` of the located pose, which takes
-    /// fewer wrong candidates and loses fewer right ones to the ratio test, and that location
-    /// replaces the first when it has more inliers.
+    /// missed, such as the start of a turn, moves the points out of the window); when the
+    /// located pose moved the points by half the window or more, matched again within the
+    /// window around it (the first matches were those the window let through, part of the
+    /// right ones); then the points are matched again within `relocate_window_px` of the
+    /// located pose, which takes fewer wrong candidates and loses fewer right ones to the
+    /// ratio test. Each later location replaces the one before when it has more inliers.
     pub(super) fn locate_in_map(
         &self,
         query: &Features,
@@ -49,13 +81,21 @@ impl MonoTracker {
         if located.fit.is_err() {
             located = locate(self.cfg.window_px * WIDE_WINDOW_FACTOR, predicted.inverse());
         }
+        // A pose that moved the points by half the window or more was found from the matches
+        // the window let through, which can be a part of the right ones biased towards the
+        // prediction; matched again within the window around it, they are all inside.
+        if let Ok(first) = &located.fit {
+            let moved = median_shift_px(&self.camera, &located, &predicted.inverse());
+            if moved.is_some_and(|px| px >= 0.5 * f64::from(self.cfg.window_px)) {
+                let again = locate(self.cfg.window_px, first.pose);
+                if more_inliers(&again, first) {
+                    located = again;
+                }
+            }
+        }
         if let (Some(radius), Ok(first)) = (self.cfg.relocate_window_px, &located.fit) {
             let again = locate(radius, first.pose);
-            let better = again
-                .fit
-                .as_ref()
-                .is_ok_and(|fit| fit.inlier_count() > first.inlier_count());
-            if better {
+            if more_inliers(&again, first) {
                 located = again;
             }
         }

@@ -13,9 +13,11 @@
 //!    and matched to the current features around it, among those of the pyramid level it is
 //!    expected at from the predicted distance; PnP RANSAC, the prediction its first
 //!    hypothesis, with Huber refinement (motion-only; each residual divided by its keypoint's
-//!    level scale `1.2^k`) gives `T_cw`, `T_wc = T_cw^-1`. The points are then matched again
-//!    in a narrow window (`relocate_window_px`) around that pose and PnP repeated from it; the
-//!    pose with more inliers is kept.
+//!    level scale `1.2^k`) gives `T_cw`, `T_wc = T_cw^-1`. When that pose moved the points by
+//!    half the window or more from the prediction (the start of a turn: the window let
+//!    through only a part of the right matches), they are matched again within the window
+//!    around it. The points are then matched again in a narrow window (`relocate_window_px`)
+//!    around the pose and PnP repeated from it; each time the pose with more inliers is kept.
 //! 3. Keyframes are decided without metric units: a new one is taken when the median parallax
 //!    of the tracked points between the last keyframe's and the current camera centres,
 //!    `angle(P - C_kf, P - C_cur)`, reaches `keyframe_parallax_deg`, when the tracked ratio
