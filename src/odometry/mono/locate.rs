@@ -3,8 +3,7 @@
 
 use std::time::Instant;
 
-use crate::robust::median_in_place;
-use nalgebra::Isometry3;
+use nalgebra::{Isometry3, Point3};
 use vofront_features::Features;
 use vofront_geometry::pnp::PnpResult;
 use vofront_geometry::Camera;
@@ -12,6 +11,7 @@ use vofront_geometry::Camera;
 use super::map::LocalMap;
 use super::{MonoTracker, WIDE_WINDOW_FACTOR};
 use crate::odometry::{FrameEstimate, FrameQuality, Located, PointLocator, TrackStatus};
+use crate::robust::median_in_place;
 
 /// The message of a frame located after the initialisation it waited for.
 const LATE_MESSAGE: &str = "located once the map was initialised (waited for parallax)";
@@ -31,13 +31,16 @@ fn more_inliers(again: &Located, first: &PnpResult) -> bool {
         .is_ok_and(|fit| fit.inlier_count() > first.inlier_count())
 }
 
-/// Median over the inliers of `located` of `|pi(T_cw P) - pi(T_located P)|`, pixels: how far
+/// Median over the inlier `points` of `fit` of `|pi(T_cw P) - pi(T_fit P)|`, pixels: how far
 /// the located pose moved the points from where the prediction `t_cw` put them (`None`
-/// without a location or a projectable inlier).
-fn median_shift_px(camera: &Camera, located: &Located, t_cw: &Isometry3<f64>) -> Option<f64> {
-    let fit = located.fit.as_ref().ok()?;
-    let mut shifts: Vec<f64> = located
-        .points
+/// without a projectable inlier).
+fn median_shift_px(
+    camera: &Camera,
+    points: &[Point3<f64>],
+    fit: &PnpResult,
+    t_cw: &Isometry3<f64>,
+) -> Option<f64> {
+    let mut shifts: Vec<f64> = points
         .iter()
         .zip(&fit.inliers)
         .filter(|(_, &inlier)| inlier)
@@ -63,7 +66,7 @@ impl MonoTracker {
     pub(super) fn locate_in_map(
         &self,
         query: &Features,
-        positions: &[Option<nalgebra::Point3<f64>>],
+        positions: &[Option<Point3<f64>>],
         current: &Features,
         predicted: Isometry3<f64>,
     ) -> Located {
@@ -85,7 +88,7 @@ impl MonoTracker {
         // the window let through, which can be a part of the right ones biased towards the
         // prediction; matched again within the window around it, they are all inside.
         if let Ok(first) = &located.fit {
-            let moved = median_shift_px(&self.camera, &located, &predicted.inverse());
+            let moved = median_shift_px(&self.camera, &located.points, first, &predicted.inverse());
             if moved.is_some_and(|px| px >= 0.5 * f64::from(self.cfg.window_px)) {
                 let again = locate(self.cfg.window_px, first.pose);
                 if more_inliers(&again, first) {
