@@ -1,10 +1,15 @@
-//! Precomputed undistortion lookup for images.
+//! Precomputed undistortion (and rectification) lookup for images.
 //!
 //! For every pixel `(x, y)` of the ideal pinhole image (intrinsics `K_new`, no distortion),
 //! the map stores the source position in the distorted image:
 //! `(map_x, map_y) = K D(K_new^-1 (x, y, 1))`, with `K` and `D` the camera's intrinsics and
-//! distortion. Resampling the image at those positions (done by the image crates, the geometry
-//! crate never touches pixels) gives the undistorted image.
+//! distortion. With a rotation `R` (a rectifying rotation, mapping raw-camera points into the
+//! new camera frame, see [`crate::rectify`]) the ray is first rotated back into the raw camera:
+//! `(map_x, map_y) = K D(pi(R^T K_new^-1 (x, y, 1)))`, `pi(X, Y, Z) = (X/Z, Y/Z)` (OpenCV's
+//! `initUndistortRectifyMap`). Resampling the image at those positions (done by the image
+//! crates, the geometry crate never touches pixels) gives the undistorted image.
+
+use nalgebra::{Rotation3, Vector2, Vector3};
 
 use crate::camera::{Camera, CameraError, Pinhole};
 
@@ -40,6 +45,21 @@ impl UndistortMap {
         width: usize,
         height: usize,
     ) -> Result<Self, CameraError> {
+        Self::rotated(camera, &Rotation3::identity(), target, width, height)
+    }
+
+    /// Builds the map for `camera` seen through the rotation `rotation` (maps raw-camera points
+    /// into the new camera frame) onto an ideal image of `width x height` with intrinsics
+    /// `target`: `K D(pi(R^T K_new^-1 (x, y, 1)))`. A new pixel whose ray points behind the
+    /// raw camera gets `NaN` (outside every image). The identity rotation gives
+    /// [`UndistortMap::new`].
+    pub fn rotated(
+        camera: &Camera,
+        rotation: &Rotation3<f64>,
+        target: &Pinhole,
+        width: usize,
+        height: usize,
+    ) -> Result<Self, CameraError> {
         camera.validate()?;
         target.validate()?;
         let n = width * height;
@@ -54,9 +74,16 @@ impl UndistortMap {
                 let yn = (y as f64 - target.cy) / target.fy;
                 for (x, (mx, my)) in row_x.iter_mut().zip(row_y.iter_mut()).enumerate() {
                     let xn = (x as f64 - target.cx) / target.fx;
-                    let src = camera.normalized_to_pixel(&nalgebra::Vector2::new(xn, yn));
-                    *mx = src.x as f32;
-                    *my = src.y as f32;
+                    let ray = rotation.inverse_transform_vector(&Vector3::new(xn, yn, 1.0));
+                    if ray.z > 0.0 {
+                        let src = camera
+                            .normalized_to_pixel(&Vector2::new(ray.x / ray.z, ray.y / ray.z));
+                        *mx = src.x as f32;
+                        *my = src.y as f32;
+                    } else {
+                        *mx = f32::NAN;
+                        *my = f32::NAN;
+                    }
                 }
             }
         }
@@ -73,7 +100,6 @@ impl UndistortMap {
 mod tests {
     use super::*;
     use crate::camera::Distortion;
-    use nalgebra::Vector2;
 
     #[test]
     fn map_inverts_undistortion() {
