@@ -338,6 +338,8 @@ fn kitti_sequence(dir: &Path) {
             .save(dir.join(format!("image_0/{i:06}.png")))
             .expect("png");
     }
+    // Listed (one image per timestamp) but corrupt: that frame alone fails to load.
+    fs::write(dir.join("image_0/000001.png"), "not a png").expect("corrupt png");
 }
 
 const KITTI_POSES: &str = "1 0 0 0 0 1 0 0 0 0 1 0

@@ -13,15 +13,24 @@
 //! pose is `T_wc = T_wb T_bs` with `T_BS` of `cam0/sensor.yaml` (exposed as
 //! [`Dataset::camera_in_body`]). Evaluate a camera trajectory against
 //! [`Dataset::camera_ground_truth`], which applies it.
+//!
+//! Stereo, when `mav0/cam1/data.csv` exists: `mav0/cam1/` has the layout of `cam0/` (its
+//! `sensor.yaml` is required), each `cam0` frame gets the `cam1` image of the same
+//! nanosecond timestamp as its right image (none when `cam1` has no such frame: the sensor
+//! triggers both cameras together), and [`Dataset::rig`] is the stereo rig of the two cameras
+//! with their `T_BS` (body = IMU; identity when a file gives none). Without `cam1` the rig is
+//! mono, `cam0` at its `T_BS`.
 
-use std::path::Path;
+use std::collections::HashMap;
+use std::path::{Path, PathBuf};
 
 use nalgebra::{Isometry3, Matrix3, Quaternion, Rotation3, Translation3, UnitQuaternion};
+use vofront_core::rig::Rig;
 use vofront_geometry::camera::{Camera, Distortion, KannalaBrandt, Lens, Pinhole};
 
 use super::{
-    csv_records, parse_error, read_text, CameraSource, Dataset, DatasetConfig, DatasetError,
-    DatasetKind, FrameInfo,
+    csv_records, mono_rig, parse_error, read_text, CameraSource, Dataset, DatasetConfig,
+    DatasetError, DatasetKind, FrameInfo,
 };
 use crate::trajectory::{parse_numbers, Trajectory};
 
@@ -46,22 +55,90 @@ impl Dataset {
 
 /// Opens a EuRoC MAV folder (the one holding `mav0/`; see the module documentation).
 pub fn open(root: &Path, config: &DatasetConfig) -> Result<Dataset, DatasetError> {
-    let cam = root.join("mav0/cam0");
+    let cam0 = read_camera_folder(&root.join("mav0/cam0"))?;
+    let cam1_dir = root.join("mav0/cam1");
+    let cam1 = if cam1_dir.join("data.csv").is_file() {
+        Some(read_camera_folder(&cam1_dir)?)
+    } else {
+        None
+    };
+    let rights: HashMap<u64, &PathBuf> = cam1
+        .iter()
+        .flat_map(|c| c.frames.iter().map(|(ns, path)| (*ns, path)))
+        .collect();
+    let frames = cam0
+        .frames
+        .iter()
+        .map(|(ns, image)| FrameInfo {
+            timestamp: seconds(*ns),
+            image: image.clone(),
+            depth: None,
+            right: rights.get(ns).map(|p| (*p).clone()),
+        })
+        .collect();
+    let rig = match &cam1 {
+        Some(right) => Some(
+            Rig::stereo(
+                cam0.camera,
+                cam0.t_bs.unwrap_or_else(Isometry3::identity),
+                right.camera,
+                right.t_bs.unwrap_or_else(Isometry3::identity),
+            )
+            .map_err(|source| DatasetError::Rig {
+                path: right.sensor.clone(),
+                source,
+            })?,
+        ),
+        None => mono_rig(Some(cam0.camera), cam0.t_bs, &cam0.sensor)?,
+    };
+    let gt_path = root.join("mav0/state_groundtruth_estimate0/data.csv");
+    let ground_truth = if gt_path.is_file() {
+        Some(read_ground_truth(&gt_path)?)
+    } else {
+        None
+    };
+    Ok(Dataset {
+        kind: DatasetKind::Euroc,
+        root: root.to_path_buf(),
+        frames,
+        camera: Some(cam0.camera),
+        camera_source: Some(CameraSource::CalibrationFile(cam0.sensor)),
+        depth_scale: None,
+        ground_truth,
+        ground_truth_tolerance: config.ground_truth_tolerance,
+        camera_in_body: cam0.t_bs,
+        rig,
+    })
+}
+
+/// One camera folder (`mav0/camN/`): calibration and frame list.
+struct CameraFolder {
+    /// Its `sensor.yaml`.
+    sensor: PathBuf,
+    /// Intrinsics and lens.
+    camera: Camera,
+    /// `T_BS`, if given.
+    t_bs: Option<Isometry3<f64>>,
+    /// `(timestamp [ns], image file)` in list order.
+    frames: Vec<(u64, PathBuf)>,
+}
+
+/// Reads `sensor.yaml` and `data.csv` of the camera folder `cam`.
+fn read_camera_folder(cam: &Path) -> Result<CameraFolder, DatasetError> {
     let sensor = cam.join("sensor.yaml");
     if !sensor.is_file() {
         return Err(DatasetError::MissingCalibration { path: sensor });
     }
-    let (camera, camera_in_body) = read_sensor_yaml(&sensor)?;
+    let (camera, t_bs) = read_sensor_yaml(&sensor)?;
     let list = cam.join("data.csv");
     let frames = csv_records(&list)?
         .into_iter()
         .map(
             |(line, record)| match record.iter().collect::<Vec<_>>().as_slice() {
-                [stamp, file] => Ok(FrameInfo {
-                    timestamp: nanoseconds(stamp).map_err(|m| parse_error(&list, line, m))?,
-                    image: cam.join("data").join(file),
-                    depth: None,
-                }),
+                [stamp, file] => Ok((
+                    nanoseconds(stamp).map_err(|m| parse_error(&list, line, m))?,
+                    cam.join("data").join(file),
+                )),
                 _ => Err(parse_error(
                     &list,
                     line,
@@ -73,31 +150,24 @@ pub fn open(root: &Path, config: &DatasetConfig) -> Result<Dataset, DatasetError
             },
         )
         .collect::<Result<Vec<_>, _>>()?;
-    let gt_path = root.join("mav0/state_groundtruth_estimate0/data.csv");
-    let ground_truth = if gt_path.is_file() {
-        Some(read_ground_truth(&gt_path)?)
-    } else {
-        None
-    };
-    Ok(Dataset {
-        kind: DatasetKind::Euroc,
-        root: root.to_path_buf(),
+    Ok(CameraFolder {
+        sensor,
+        camera,
+        t_bs,
         frames,
-        camera: Some(camera),
-        camera_source: Some(CameraSource::CalibrationFile(sensor)),
-        depth_scale: None,
-        ground_truth,
-        ground_truth_tolerance: config.ground_truth_tolerance,
-        camera_in_body,
     })
 }
 
-/// Seconds from an integer nanosecond timestamp, split to keep full precision.
-fn nanoseconds(field: &str) -> Result<f64, String> {
-    let ns: u64 = field
+/// An integer nanosecond timestamp.
+fn nanoseconds(field: &str) -> Result<u64, String> {
+    field
         .parse()
-        .map_err(|_| format!("`{field}` is not a timestamp in nanoseconds"))?;
-    Ok((ns / 1_000_000_000) as f64 + (ns % 1_000_000_000) as f64 * 1e-9)
+        .map_err(|_| format!("`{field}` is not a timestamp in nanoseconds"))
+}
+
+/// Seconds from nanoseconds, split to keep full precision.
+fn seconds(ns: u64) -> f64 {
+    (ns / 1_000_000_000) as f64 + (ns % 1_000_000_000) as f64 * 1e-9
 }
 
 /// The camera of `sensor.yaml` (`intrinsics: [fu, fv, cu, cv]`,
@@ -228,7 +298,7 @@ fn read_ground_truth(path: &Path) -> Result<Trajectory, DatasetError> {
                     ),
                 ));
             }
-            let t = nanoseconds(fields[0]).map_err(|m| parse_error(path, line, m))?;
+            let t = seconds(nanoseconds(fields[0]).map_err(|m| parse_error(path, line, m))?);
             let v = parse_numbers(&fields[1..8]).map_err(|m| parse_error(path, line, m))?;
             let q = Quaternion::new(v[3], v[4], v[5], v[6]);
             if q.norm() < 1e-6 {
@@ -266,6 +336,7 @@ mod tests {
             ground_truth: Some(Trajectory::new(vec![(5.0, t_wb)])),
             ground_truth_tolerance: 0.02,
             camera_in_body: Some(t_bc),
+            rig: None,
         };
         let cam = data.camera_ground_truth().unwrap();
         // A point at the camera centre lands on the camera's world position T_wb * t_bc.

@@ -61,6 +61,7 @@ pub fn open(root: &Path, config: &DatasetConfig) -> Result<Dataset, DatasetError
         ground_truth: None,
         ground_truth_tolerance: config.ground_truth_tolerance,
         camera_in_body: None,
+        rig: None,
     })
 }
 
@@ -69,6 +70,7 @@ fn frame(timestamp: f64, image: PathBuf) -> FrameInfo {
         timestamp,
         image,
         depth: None,
+        right: None,
     }
 }
 

@@ -5,16 +5,24 @@
 //! [`Dataset::load`] reads one frame on demand. A missing or corrupt image is an `Err` for
 //! that frame index only ([`Dataset::iter`] yields it and moves on).
 //!
-//! | format | detected by | camera | depth | ground truth |
-//! |---|---|---|---|---|
-//! | [`tum`] | `rgb.txt` | freiburg1/2/3 preset from the folder name or list headers | `depth.txt`, 16-bit PNG / 5000 | `groundtruth.txt`, camera `T_wc` |
-//! | [`kitti`] | `image_0/` + `times.txt` | `calib.txt` line `P0` | none | `poses.txt` or `../../poses/<seq>.txt`, camera `T_wc` |
-//! | [`euroc`] | `mav0/cam0/data.csv` | `mav0/cam0/sensor.yaml` | none | `mav0/state_groundtruth_estimate0/data.csv`, **body (IMU) pose** `T_wb` (camera: `T_wb * camera_in_body`) |
-//! | [`images`] | `.png`/`.jpg` files | none | none | none |
+//! | format | detected by | camera | right camera (stereo rig) | depth | ground truth |
+//! |---|---|---|---|---|---|
+//! | [`tum`] | `rgb.txt` | freiburg1/2/3 preset from the folder name or list headers | none (mono rig) | `depth.txt`, 16-bit PNG / 5000 | `groundtruth.txt`, camera `T_wc` |
+//! | [`kitti`] | `image_0/` + `times.txt` | `calib.txt` line `P0` | `image_1/` (same file names), `calib.txt` line `P1`, baseline `-P1[3] / P1[0]` | none | `poses.txt` or `../../poses/<seq>.txt`, camera `T_wc` |
+//! | [`euroc`] | `mav0/cam0/data.csv` | `mav0/cam0/sensor.yaml` | `mav0/cam1/` (`data.csv`, `sensor.yaml` with its `T_BS`), paired by timestamp | none | `mav0/state_groundtruth_estimate0/data.csv`, **body (IMU) pose** `T_wb` (camera: `T_wb * camera_in_body`) |
+//! | [`images`] | `.png`/`.jpg` files | none | none | none | none |
 //!
 //! [`Dataset::camera`] is the camera the dataset describes and [`Dataset::camera_source`]
 //! says where it was found; for TUM it is the freiburg1/2/3 preset named by the folder name
 //! or by the `# file:` header of its lists ([`tum::tum_preset_for`]).
+//!
+//! [`Dataset::rig`] holds the cameras with their poses in the body frame
+//! ([`vofront_core::rig::Rig`]): stereo when the folder has a right camera (KITTI `image_1/`,
+//! EuRoC `cam1/`; body = left camera for KITTI, the IMU for EuRoC), else mono (the camera at
+//! the body origin, EuRoC: at its `T_BS`). The right images are listed in
+//! [`FrameInfo::right`] and read only by [`Dataset::load_stereo`]: [`Dataset::load`] (the
+//! monocular and RGB-D path) never touches them. Rectify a stereo rig once with
+//! [`vofront_core::rectify::StereoRectification`].
 //!
 //! ```
 //! use image::{GrayImage, Luma};
@@ -33,6 +41,7 @@
 //! ```
 
 pub mod euroc;
+mod frame;
 pub mod images;
 pub mod kitti;
 pub mod tum;
@@ -40,12 +49,15 @@ pub mod tum;
 use std::io;
 use std::path::{Path, PathBuf};
 
-use image::{DynamicImage, GrayImage};
+use image::DynamicImage;
 use nalgebra::Isometry3;
 use thiserror::Error;
+use vofront_core::rig::{Rig, RigError};
 use vofront_geometry::camera::{Camera, CameraError};
 
 use crate::trajectory::{Trajectory, TrajectoryError};
+
+pub use frame::{Frame, FrameError};
 
 /// Metric depth image: metres, `0.0` where the sensor gave no depth (the image crate's float
 /// image).
@@ -98,6 +110,40 @@ pub enum DatasetError {
     /// The dataset lists no frame.
     #[error("{0}: the dataset lists no frame")]
     NoFrames(PathBuf),
+    /// The image folder and the timestamp list hold different numbers of frames (KITTI).
+    #[error("{images_dir}: {images} images, but {times_file} lists {times} timestamps")]
+    FrameCount {
+        /// The image folder.
+        images_dir: PathBuf,
+        /// Number of images in it.
+        images: usize,
+        /// The timestamp list.
+        times_file: PathBuf,
+        /// Number of timestamps in it.
+        times: usize,
+    },
+    /// The right image of a left image is missing (KITTI `image_1/`).
+    #[error("{path}: right image missing (its left image is {left})")]
+    MissingRightImage {
+        /// The expected right image.
+        path: PathBuf,
+        /// The left image it pairs with.
+        left: PathBuf,
+    },
+    /// [`Dataset::load_stereo`] on a frame without a right image.
+    #[error("frame {index}: the dataset lists no right image for it")]
+    NoRightImage {
+        /// Frame index.
+        index: usize,
+    },
+    /// The calibration gives an invalid camera rig (e.g. a zero baseline).
+    #[error("{path}: {source}")]
+    Rig {
+        /// The calibration file of the right camera.
+        path: PathBuf,
+        /// Why the rig is invalid.
+        source: RigError,
+    },
     /// A frame index past the end of the frame list.
     #[error("frame {index} requested, the dataset has {len}")]
     FrameIndex {
@@ -116,7 +162,8 @@ pub enum DatasetError {
         /// The decoder error.
         source: image::ImageError,
     },
-    /// A listed frame's parts do not make a [`Frame`] (a non-finite timestamp).
+    /// A listed frame's parts do not make a [`Frame`] (a non-finite timestamp, a right
+    /// image of another size).
     #[error("frame {index}: {source}")]
     Frame {
         /// Frame index.
@@ -180,105 +227,9 @@ pub struct FrameInfo {
     pub image: PathBuf,
     /// The associated depth image file, if any.
     pub depth: Option<PathBuf>,
-}
-
-/// One loaded frame: a finite capture time, an 8-bit grey image and, optionally, a metric
-/// depth map of the same size (checked by [`Frame::new`], so every tracker can index the
-/// depth with the image's pixel coordinates).
-///
-/// ```
-/// use image::{GrayImage, Luma};
-/// use vofront::dataset::{DepthImage, Frame, FrameError};
-/// let image = GrayImage::from_pixel(4, 3, Luma([90]));
-/// let frame = Frame::new(0.5, image.clone(), Some(DepthImage::from_pixel(4, 3, Luma([1.5])))).unwrap();
-/// assert_eq!((frame.timestamp(), frame.image().dimensions()), (0.5, (4, 3)));
-/// assert_eq!(frame.depth().unwrap().get_pixel(3, 2)[0], 1.5);
-///
-/// let small = DepthImage::new(2, 2);
-/// assert!(matches!(Frame::new(0.5, image.clone(), Some(small)), Err(FrameError::DepthSize { .. })));
-/// assert!(matches!(Frame::new(f64::NAN, image, None), Err(FrameError::Timestamp(_))));
-/// ```
-#[derive(Debug, Clone)]
-pub struct Frame {
-    timestamp: f64,
-    image: GrayImage,
-    depth: Option<DepthImage>,
-}
-
-/// Why [`Frame::new`] refused its parts.
-#[derive(Debug, Clone, PartialEq, Error)]
-pub enum FrameError {
-    /// The capture time is NaN or infinite.
-    #[error("timestamp {0} is not a finite number of seconds")]
-    Timestamp(f64),
-    /// The depth map's size differs from the image's (`(width, height)`, pixels).
-    #[error("depth is {depth:?}, image is {image:?}")]
-    DepthSize {
-        /// Image size.
-        image: (u32, u32),
-        /// Depth map size.
-        depth: (u32, u32),
-    },
-}
-
-impl Frame {
-    /// A frame at `timestamp` (seconds, finite) with its grey image and an optional metric
-    /// depth map (metres, `0.0` = no depth) of the image's size.
-    pub fn new(
-        timestamp: f64,
-        image: GrayImage,
-        depth: Option<DepthImage>,
-    ) -> Result<Self, FrameError> {
-        if !timestamp.is_finite() {
-            return Err(FrameError::Timestamp(timestamp));
-        }
-        if let Some(d) = &depth {
-            if d.dimensions() != image.dimensions() {
-                return Err(FrameError::DepthSize {
-                    image: image.dimensions(),
-                    depth: d.dimensions(),
-                });
-            }
-        }
-        Ok(Self {
-            timestamp,
-            image,
-            depth,
-        })
-    }
-
-    /// Capture time, seconds.
-    pub fn timestamp(&self) -> f64 {
-        self.timestamp
-    }
-
-    /// The image, 8-bit grey.
-    pub fn image(&self) -> &GrayImage {
-        &self.image
-    }
-
-    /// Metric depth (metres, 0 = invalid), the image's size; `None` without depth.
-    pub fn depth(&self) -> Option<&DepthImage> {
-        self.depth.as_ref()
-    }
-
-    /// The same frame without its depth map (a monocular view of an RGB-D frame).
-    pub fn without_depth(self) -> Self {
-        Self {
-            depth: None,
-            ..self
-        }
-    }
-
-    /// The same frame at another capture time (seconds, finite).
-    pub fn with_timestamp(self, timestamp: f64) -> Result<Self, FrameError> {
-        Self::new(timestamp, self.image, self.depth)
-    }
-
-    /// `(timestamp, image, depth)`, moved out.
-    pub fn into_parts(self) -> (f64, GrayImage, Option<DepthImage>) {
-        (self.timestamp, self.image, self.depth)
-    }
+    /// The right image of a stereo pair (same size as `image`), if any; read by
+    /// [`Dataset::load_stereo`] only.
+    pub right: Option<PathBuf>,
 }
 
 /// Options of [`Dataset::open_with`].
@@ -330,6 +281,10 @@ pub struct Dataset {
     /// `cam0/sensor.yaml`, maps camera points into the body frame), so that the camera
     /// ground truth is `T_wc = T_wb * T_bc`. `None` for TUM and KITTI.
     pub camera_in_body: Option<Isometry3<f64>>,
+    /// The camera rig (see the module documentation): stereo with a right camera (KITTI
+    /// `image_1/` + `P1`, EuRoC `cam1/`), else mono around [`Dataset::camera`]; `None`
+    /// exactly when `camera` is `None`. Its left camera is [`Dataset::camera`].
+    pub rig: Option<Rig>,
 }
 
 impl Dataset {
@@ -374,11 +329,9 @@ impl Dataset {
 
     /// Loads frame `index`: the image as 8-bit grey (colour converted with the `image`
     /// crate's luma weights) and, if listed, the depth map as metres (`raw / depth_scale`).
+    /// A listed right image is not read (see [`Dataset::load_stereo`]).
     pub fn load(&self, index: usize) -> Result<Frame, DatasetError> {
-        let info = self.frames.get(index).ok_or(DatasetError::FrameIndex {
-            index,
-            len: self.frames.len(),
-        })?;
+        let info = self.info(index)?;
         let image = open_image(index, &info.image)?.into_luma8();
         let depth = match &info.depth {
             Some(path) => Some(self.load_depth(index, path)?),
@@ -391,6 +344,30 @@ impl Dataset {
                 message: size.to_string(),
             },
             (source, _) => DatasetError::Frame { index, source },
+        })
+    }
+
+    /// Loads frame `index` as [`Dataset::load`] plus its right image (8-bit grey, the left
+    /// image's size): [`DatasetError::NoRightImage`] when the frame has none listed,
+    /// [`DatasetError::Image`] when it cannot be read, [`DatasetError::Frame`] when its size
+    /// differs.
+    pub fn load_stereo(&self, index: usize) -> Result<Frame, DatasetError> {
+        let path = self
+            .info(index)?
+            .right
+            .as_ref()
+            .ok_or(DatasetError::NoRightImage { index })?;
+        let right = open_image(index, path)?.into_luma8();
+        self.load(index)?
+            .with_right(right)
+            .map_err(|source| DatasetError::Frame { index, source })
+    }
+
+    /// The listing of frame `index`.
+    fn info(&self, index: usize) -> Result<&FrameInfo, DatasetError> {
+        self.frames.get(index).ok_or(DatasetError::FrameIndex {
+            index,
+            len: self.frames.len(),
         })
     }
 
@@ -476,4 +453,20 @@ fn parse_error(path: &Path, line: usize, message: impl Into<String>) -> DatasetE
         line,
         message: message.into(),
     }
+}
+
+/// The rig of a one-camera dataset: `camera` at `t_bs` in the body frame (identity when
+/// unknown); `None` without a camera. `path`: the calibration file named by an error.
+fn mono_rig(
+    camera: Option<Camera>,
+    t_bs: Option<Isometry3<f64>>,
+    path: &Path,
+) -> Result<Option<Rig>, DatasetError> {
+    camera
+        .map(|c| Rig::mono_in_body(c, t_bs.unwrap_or_else(Isometry3::identity)))
+        .transpose()
+        .map_err(|source| DatasetError::Rig {
+            path: path.to_path_buf(),
+            source,
+        })
 }

@@ -38,6 +38,7 @@ pub fn open(root: &Path, config: &DatasetConfig) -> Result<Dataset, DatasetError
             timestamp,
             image,
             depth: None,
+            right: None,
         })
         .collect();
     let rgb_stamps: Vec<f64> = frames.iter().map(|f| f.timestamp).collect();
@@ -59,6 +60,7 @@ pub fn open(root: &Path, config: &DatasetConfig) -> Result<Dataset, DatasetError
         kind: DatasetKind::Tum,
         root: root.to_path_buf(),
         frames,
+        rig: super::mono_rig(camera, None, root)?,
         camera,
         camera_source,
         depth_scale: depth_list.is_file().then_some(TUM_DEPTH_SCALE),

@@ -220,7 +220,11 @@ fn rectifying_rotations(t_rl: &Isometry3<f64>) -> Result<[Rotation3<f64>; 2], Re
 
 /// The ray `R (x_n, 1)` of a raw pixel in the rectified camera, `None` when the pixel cannot be
 /// undistorted or the ray does not point forwards.
-fn rectified_ray(camera: &Camera, rotation: &Rotation3<f64>, raw: &Vector2<f64>) -> Option<Vector3<f64>> {
+fn rectified_ray(
+    camera: &Camera,
+    rotation: &Rotation3<f64>,
+    raw: &Vector2<f64>,
+) -> Option<Vector3<f64>> {
     let xn = camera.pixel_to_normalized(raw)?;
     let ray = rotation * Vector3::new(xn.x, xn.y, 1.0);
     (ray.z > 0.0).then_some(ray)

@@ -111,7 +111,7 @@ impl Rig {
             right: Some(RigCamera::checked(1, right, t_bs_right)?),
         };
         let baseline = (t_bs_right.translation.vector - t_bs_left.translation.vector).norm();
-        if !(baseline >= MIN_BASELINE) {
+        if baseline < MIN_BASELINE {
             return Err(RigError::ZeroBaseline { baseline });
         }
         Ok(rig)

@@ -76,8 +76,8 @@ impl UndistortMap {
                     let xn = (x as f64 - target.cx) / target.fx;
                     let ray = rotation.inverse_transform_vector(&Vector3::new(xn, yn, 1.0));
                     if ray.z > 0.0 {
-                        let src = camera
-                            .normalized_to_pixel(&Vector2::new(ray.x / ray.z, ray.y / ray.z));
+                        let src =
+                            camera.normalized_to_pixel(&Vector2::new(ray.x / ray.z, ray.y / ray.z));
                         *mx = src.x as f32;
                         *my = src.y as f32;
                     } else {

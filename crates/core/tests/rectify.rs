@@ -42,8 +42,8 @@ fn rectified_rows_agree_and_disparity_is_f_b_over_z() {
     assert!((rect.baseline() - t_rl.translation.vector.norm()).abs() < 1e-12);
     assert!((rect.baseline() - rig.baseline().unwrap()).abs() < 1e-12);
     // Rectified cameras are parallel: R_right R_RL R_left^T = I.
-    let residual = rect.rotation_right() * t_rl.rotation.to_rotation_matrix()
-        * rect.rotation_left().inverse();
+    let residual =
+        rect.rotation_right() * t_rl.rotation.to_rotation_matrix() * rect.rotation_left().inverse();
     let off = (residual.matrix() - nalgebra::Matrix3::identity()).norm();
     assert!(off < 1e-12, "{off}");
     let f = rect.pinhole().fx;
@@ -82,14 +82,23 @@ fn maps_invert_the_point_rectification_and_stay_inside_the_raw_images() {
     let rect = StereoRectification::new(&rig, WIDTH, HEIGHT).expect("rectify");
     assert_eq!(rect.size(), (WIDTH, HEIGHT));
     for (map, forward) in [
-        (rect.map_left(), StereoRectification::rectify_left as fn(&_, &_) -> _),
+        (
+            rect.map_left(),
+            StereoRectification::rectify_left as fn(&_, &_) -> _,
+        ),
         (rect.map_right(), StereoRectification::rectify_right),
     ] {
         assert_eq!((map.width, map.height), (WIDTH, HEIGHT));
         for (i, (&sx, &sy)) in map.map_x.iter().zip(&map.map_y).enumerate() {
             // alpha = 0: every rectified pixel has a source inside the raw image (f32 slack).
-            assert!(sx >= -1e-3 && sx <= (WIDTH - 1) as f32 + 1e-3, "x {sx} at {i}");
-            assert!(sy >= -1e-3 && sy <= (HEIGHT - 1) as f32 + 1e-3, "y {sy} at {i}");
+            assert!(
+                sx >= -1e-3 && sx <= (WIDTH - 1) as f32 + 1e-3,
+                "x {sx} at {i}"
+            );
+            assert!(
+                sy >= -1e-3 && sy <= (HEIGHT - 1) as f32 + 1e-3,
+                "y {sy} at {i}"
+            );
             if i % 97 == 0 {
                 let back = forward(&rect, &Vector2::new(sx as f64, sy as f64)).expect("inside");
                 let want = Vector2::new((i % WIDTH) as f64, (i / WIDTH) as f64);
@@ -103,14 +112,22 @@ fn maps_invert_the_point_rectification_and_stay_inside_the_raw_images() {
         .map_x
         .iter()
         .zip(&map.map_y)
-        .map(|(&x, &y)| x.min(y).min((WIDTH - 1) as f32 - x).min((HEIGHT - 1) as f32 - y))
+        .map(|(&x, &y)| {
+            x.min(y)
+                .min((WIDTH - 1) as f32 - x)
+                .min((HEIGHT - 1) as f32 - y)
+        })
         .fold(f32::INFINITY, f32::min);
     let reach_right = rect
         .map_right()
         .map_x
         .iter()
         .zip(&rect.map_right().map_y)
-        .map(|(&x, &y)| x.min(y).min((WIDTH - 1) as f32 - x).min((HEIGHT - 1) as f32 - y))
+        .map(|(&x, &y)| {
+            x.min(y)
+                .min((WIDTH - 1) as f32 - x)
+                .min((HEIGHT - 1) as f32 - y)
+        })
         .fold(f32::INFINITY, f32::min);
     assert!(reach.min(reach_right) < 0.01, "{reach} {reach_right}");
 }
@@ -168,9 +185,8 @@ fn invalid_rigs_are_typed_errors() {
         StereoRectification::new(&mono, 640, 480),
         Err(RectifyError::Mono)
     );
-    let stereo = |x: f64, y: f64, z: f64| {
-        Rig::stereo(cam, i, cam, Isometry3::translation(x, y, z)).unwrap()
-    };
+    let stereo =
+        |x: f64, y: f64, z: f64| Rig::stereo(cam, i, cam, Isometry3::translation(x, y, z)).unwrap();
     assert!(matches!(
         StereoRectification::new(&stereo(0.01, 0.1, 0.0), 640, 480),
         Err(RectifyError::NotSideBySide { .. })
