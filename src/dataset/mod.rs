@@ -139,7 +139,8 @@ pub enum DatasetError {
     /// The calibration gives an invalid camera rig (e.g. a zero baseline).
     #[error("{path}: {source}")]
     Rig {
-        /// The calibration file of the right camera.
+        /// The calibration file that completes the rig (KITTI `calib.txt`, EuRoC
+        /// `cam1/sensor.yaml`; the camera's file or folder for a mono rig).
         path: PathBuf,
         /// Why the rig is invalid.
         source: RigError,
