@@ -13,11 +13,23 @@
 //! - [`direct`]: RGB-D photometric SE(3) alignment to the keyframe;
 //! - [`feature_rgbd`]: ORB matched to the keyframe, 3D points from its depth, PnP RANSAC;
 //! - [`mono`]: monocular ORB: two-view initialisation, triangulated points, PnP tracking.
+//!
+//! What every sequential tracker may need besides its own alignment lives here too, crate-
+//! private: `coast` (the motion model keeps its velocity through up to ten lost frames, then
+//! holds still), `lost` (the map tracking was lost on, with the step length then: each later
+//! frame is first relocated in it before the tracker restarts) and `late` (the frames waited
+//! through before a map exists, located later on the way between the reference and the
+//! current pose: [`Tracker::pending`] and [`Tracker::revised`]). [`mono`] uses all three; the
+//! RGB-D trackers restart at once on a failure ([`motion`]'s velocity dropped), with nothing
+//! to wait for or relocate in.
 
+mod coast;
 pub mod direct;
 pub mod feature_rgbd;
 pub mod graph;
 pub mod keyframe;
+mod late;
+mod lost;
 pub mod mono;
 pub mod motion;
 pub mod run;

@@ -1,7 +1,5 @@
-//! Locating a frame in the local map: the three matching passes of tracking, and the late
-//! location of the frames an initialisation waited through.
-
-use std::time::Instant;
+//! Locating a frame in the local map: the matching passes of tracking, and the late location
+//! of the frames an initialisation waited through.
 
 use nalgebra::{Isometry3, Point3};
 use vofront_features::Features;
@@ -10,18 +8,12 @@ use vofront_geometry::Camera;
 
 use super::map::LocalMap;
 use super::{MonoTracker, WIDE_WINDOW_FACTOR};
+use crate::odometry::late::Waiting;
 use crate::odometry::{FrameEstimate, FrameQuality, Located, PointLocator, TrackStatus};
 use crate::robust::median_in_place;
 
 /// The message of a frame located after the initialisation it waited for.
 const LATE_MESSAGE: &str = "located once the map was initialised (waited for parallax)";
-
-/// The pose a fraction `f` of the way along the screw motion from `t_w1` to `t_w2`:
-/// `T_w1 exp(f log(T_w1^-1 T_w2))`, with the rotation and translation interpolated apart.
-fn along(t_w1: &Isometry3<f64>, t_w2: &Isometry3<f64>, f: f64) -> Isometry3<f64> {
-    let t_12 = t_w1.inverse() * t_w2;
-    t_w1 * Isometry3::new(t_12.translation.vector * f, t_12.rotation.scaled_axis() * f)
-}
 
 /// Whether `again` located the frame with more PnP inliers than `first`.
 fn more_inliers(again: &Located, first: &PnpResult) -> bool {
@@ -105,59 +97,34 @@ impl MonoTracker {
         located
     }
 
-    /// The frames an initialisation waited through (`waited`: frame index and features, the
-    /// reference at `t_w1` being frame `since`), located in the new `map` whose current frame
-    /// `now` is at `t_wn`: each from the pose its index places on the way between the two
-    /// (`along`), as a tracked frame is. Returns `(frames back from now, estimate)` for those
-    /// located; the others stay lost.
+    /// The frames an initialisation waited through (`waiting`: their features, the reference
+    /// being at `t_w1`), located in the new `map` whose current frame `now` is at `t_wn`: each
+    /// from the pose its index places on the way between the two ([`Waiting::locate`]), as a
+    /// tracked frame is. Returns `(frames back from now, estimate)` for those located; the
+    /// others stay lost.
     pub(super) fn locate_waited(
         &self,
         map: &LocalMap,
-        waited: &[(usize, Features)],
-        (since, t_w1): (usize, &Isometry3<f64>),
-        (now, t_wn): (usize, &Isometry3<f64>),
+        waiting: &Waiting<Features>,
+        t_w1: &Isometry3<f64>,
+        now: (usize, &Isometry3<f64>),
         size: (u32, u32),
     ) -> Vec<(usize, FrameEstimate)> {
-        let span = now.saturating_sub(since).max(1) as f64;
         let scale_factor = self.cfg.orb.scale_factor;
-        waited
-            .iter()
-            .filter_map(|(frame, features)| {
-                let start = Instant::now();
-                let predicted = along(t_w1, t_wn, (frame - since) as f64 / span);
-                let (query, positions, _) =
-                    map.project_points(&self.camera, &predicted.inverse(), size, scale_factor);
-                let located = self.locate_in_map(&query, &positions, features, predicted);
-                let fit = located.fit.ok()?;
-                let quality = FrameQuality::of_pnp(&fit, located.matches.len());
-                let estimate = Self::estimate(
-                    fit.pose.inverse(),
-                    TrackStatus::Ok,
-                    quality,
-                    Some(LATE_MESSAGE.into()),
-                    start,
-                )
-                .judged(fit.quality);
-                Some((now - frame, estimate))
-            })
-            .collect()
-    }
-}
-
-#[cfg(test)]
-mod tests {
-    use nalgebra::{Isometry3, Vector3};
-
-    use super::along;
-
-    #[test]
-    fn along_runs_from_the_first_pose_to_the_second() {
-        let t_w1 = Isometry3::new(Vector3::new(1.0, -2.0, 0.5), Vector3::new(0.1, 0.2, -0.3));
-        let t_w2 = t_w1 * Isometry3::new(Vector3::new(0.0, 0.0, 4.0), Vector3::new(0.0, 0.08, 0.0));
-        assert!((along(&t_w1, &t_w2, 0.0).to_homogeneous() - t_w1.to_homogeneous()).norm() < 1e-12);
-        assert!((along(&t_w1, &t_w2, 1.0).to_homogeneous() - t_w2.to_homogeneous()).norm() < 1e-12);
-        let half = t_w1.inverse() * along(&t_w1, &t_w2, 0.5);
-        assert!((half.translation.vector - Vector3::new(0.0, 0.0, 2.0)).norm() < 1e-12);
-        assert!((half.rotation.angle() - 0.04).abs() < 1e-12);
+        waiting.locate(t_w1, now, |features, predicted, start| {
+            let (query, positions, _) =
+                map.project_points(&self.camera, &predicted.inverse(), size, scale_factor);
+            let located = self.locate_in_map(&query, &positions, features, predicted);
+            let fit = located.fit.ok()?;
+            let quality = FrameQuality::of_pnp(&fit, located.matches.len());
+            let estimate = Self::estimate(
+                fit.pose.inverse(),
+                TrackStatus::Ok,
+                quality,
+                Some(LATE_MESSAGE.into()),
+                start,
+            );
+            Some(estimate.judged(fit.quality))
+        })
     }
 }

@@ -6,8 +6,8 @@
 //!    features is skipped (never made the reference), and a reference that no longer matches
 //!    the current frame is replaced by it. The frames waited through are reported lost and
 //!    pending ([`Tracker::pending`]); once the map exists each is located in it from the pose
-//!    its index places between the two views (`locate`), and handed over as a late estimate
-//!    ([`Tracker::revised`]).
+//!    its index places between the two views (`locate`, `odometry::late`), and handed over as
+//!    a late estimate ([`Tracker::revised`]).
 //! 2. Tracking: every point of the local map (`map`: the points observed by the window of
 //!    recent keyframes) is projected with the constant-velocity prediction `pi(K T_cw' P_w)`
 //!    and matched to the current features around it, among those of the pyramid level it is
@@ -32,14 +32,14 @@
 //!    keyframe that initialises with it (enough parallax and points): the map is placed at
 //!    that keyframe's pose, its scale joined to the lost map's, and the frame is tracked
 //!    (`reinitialised`). Otherwise the frame is lost; the motion model coasts through lost
-//!    frames (up to `MAX_COAST_FRAMES`). Each later frame is first located against the lost
-//!    map from that prediction (wide window, `min_keyframe_inliers` inliers): after a short
-//!    fault the map is tracked again with its scale. Meanwhile initialisation starts again
-//!    (from that frame if it has enough features), placed at the motion model's pose, with the
-//!    new map's scale joined to the lost one where they overlap; where they do not (a segment
-//!    break, said in the reinitialised frame's message), the new baseline is the motion
-//!    model's median step length times the frames it spans, so that the trajectory keeps its
-//!    speed.
+//!    frames (`odometry::coast`). Each later frame is first located against the lost map
+//!    (`odometry::lost`) from that prediction (wide window, `min_keyframe_inliers` inliers):
+//!    after a short fault the map is tracked again with its scale. Meanwhile initialisation
+//!    starts again (from that frame if it has enough features), placed at the motion model's
+//!    pose, with the new map's scale joined to the lost one where they overlap; where they do
+//!    not (a segment break, said in the reinitialised frame's message), the new baseline is the
+//!    motion model's median step length times the frames it spans, so that the trajectory
+//!    keeps its speed.
 
 mod adjust;
 mod config;
@@ -55,16 +55,15 @@ use nalgebra::{Isometry3, Point3};
 use vofront_features::{Features, Match, Orb};
 use vofront_geometry::Camera;
 
+use super::coast::Coasting;
 use super::keyframe::KeyframeView;
-use super::motion::ConstantVelocity;
+use super::late::{LateEstimates, Waiting};
+use super::lost::LostMap;
 use super::{ms_since, FrameEstimate, FrameQuality, Located, PointLocator, TrackStatus, Tracker};
 use crate::dataset::Frame;
 pub use config::{MonoConfig, KEYPOINT_QUANTISATION_PX};
 use init::{initialise, rescale, scale_from_motion, scale_to, InitRules};
 use map::{LocalMap, MapRules, PointId};
-
-/// Lost frames through which the motion model keeps its velocity.
-const MAX_COAST_FRAMES: usize = 10;
 
 /// Search window of the retry after a failed tracking attempt, in units of `window_px`.
 const WIDE_WINDOW_FACTOR: f32 = 4.0;
@@ -85,13 +84,13 @@ fn median_parallax_deg<'a>(
 enum State {
     /// Nothing seen yet, or just lost on a frame that could not serve as a reference.
     Empty,
-    /// Waiting for enough parallax against `reference`, frame `since`; `waited`: the later
-    /// frames that could not initialise with it (index, features), located once a map exists.
+    /// Waiting for enough parallax against `reference` at `t_wc`; `waiting`: from the
+    /// reference's index, the later frames that could not initialise with it, located once a
+    /// map exists.
     Initialising {
         reference: Features,
         t_wc: Isometry3<f64>,
-        since: usize,
-        waited: Vec<(usize, Features)>,
+        waiting: Waiting<Features>,
     },
     /// Tracking against the local map; the residual of the first frame after its keyframe.
     Tracking {
@@ -130,19 +129,16 @@ pub struct MonoTracker {
     orb: Orb,
     camera: Camera,
     state: State,
-    motion: ConstantVelocity,
+    /// The motion model, coasting through lost frames.
+    coast: Coasting,
     initialised_once: bool,
-    /// The map before tracking was lost: its points set the scale of the next map.
-    lost_map: Option<LocalMap>,
-    /// The motion model's step length (map units per frame) when tracking was lost: the scale
-    /// of a new map that shares no points with the lost one.
-    lost_step: Option<f64>,
-    /// Consecutive lost frames the motion model has coasted through.
-    coasted: usize,
-    /// Index of the frame being tracked (frames given so far before it).
-    frame: usize,
-    /// Late estimates of waited frames made by the last `track` call ([`Tracker::revised`]).
-    revised: Vec<(usize, FrameEstimate)>,
+    /// The map before tracking was lost (frames are relocated in it, its points set the scale
+    /// of the next map) and the step length then (the scale of a new map that shares no
+    /// points with the lost one).
+    lost: LostMap<LocalMap>,
+    /// The frame count, and the late estimates of waited frames made by the last `track`
+    /// call ([`Tracker::revised`]).
+    late: LateEstimates,
 }
 
 impl MonoTracker {
@@ -154,13 +150,10 @@ impl MonoTracker {
             orb,
             camera,
             state: State::Empty,
-            motion: ConstantVelocity::default(),
+            coast: Coasting::default(),
             initialised_once: false,
-            lost_map: None,
-            lost_step: None,
-            coasted: 0,
-            frame: 0,
-            revised: Vec::new(),
+            lost: LostMap::default(),
+            late: LateEstimates::default(),
         })
     }
 
@@ -214,23 +207,14 @@ impl MonoTracker {
         let fit = match fit {
             Ok(fit) => fit,
             Err(why) => {
-                self.lost_step = self.motion.step_length();
-                let map = match self.restart_from_window(map, &current, start) {
-                    Ok(estimate) => return estimate,
-                    Err(map) => map,
-                };
-                self.lost_map = Some(map);
-                if current.len() >= self.cfg.min_init_points {
-                    self.state = State::Initialising {
-                        reference: current,
-                        t_wc: predicted,
-                        since: self.frame,
-                        waited: Vec::new(),
-                    };
+                self.lost.lose(map, self.coast.motion.step_length());
+                if let Some(estimate) = self.restart_from_window(&current, start) {
+                    return estimate;
                 }
-                let quality = FrameQuality::default();
-                let why = Some(why.to_string());
-                return Self::estimate(predicted, TrackStatus::Lost, quality, why, start);
+                if current.len() >= self.cfg.min_init_points {
+                    self.state = self.initialising(current, predicted);
+                }
+                return FrameEstimate::lost(predicted, why.to_string(), start);
             }
         };
         let mut t_wc = fit.pose.inverse();
@@ -245,13 +229,7 @@ impl MonoTracker {
             map.found(*id);
         }
         let Some(last) = map.last() else {
-            return Self::estimate(
-                predicted,
-                TrackStatus::Lost,
-                FrameQuality::default(),
-                Some("empty map".into()),
-                start,
-            );
+            return FrameEstimate::lost(predicted, "empty map".into(), start);
         };
         let last_points = last.point_of.iter().flatten().count();
         let t_kf_w = last.t_wc.inverse();
@@ -283,7 +261,7 @@ impl MonoTracker {
         };
         let first_residual = if keyframe {
             let rules = self.map_rules();
-            let k = map.push_keyframe(t_wc, current, self.frame);
+            let k = map.push_keyframe(t_wc, current, self.late.frame());
             for (m, id, _) in &tracked {
                 map.observe(*id, k, m.train);
             }
@@ -297,7 +275,7 @@ impl MonoTracker {
         } else {
             Some(first_residual)
         };
-        self.motion.update(t_wc);
+        self.coast.motion.update(t_wc);
         self.state = State::Tracking {
             map,
             first_residual,
@@ -318,7 +296,7 @@ impl MonoTracker {
         start: Instant,
     ) -> FrameEstimate {
         let (status, message) = if self.initialised_once {
-            let joined = self.lost_map.take().and_then(|old| {
+            let joined = self.lost.take().and_then(|old| {
                 scale_to(
                     &old,
                     &map,
@@ -332,7 +310,7 @@ impl MonoTracker {
                     rescale(&mut map, t_w1, s);
                     format!("new map, scale {s:.3} joined to the lost one")
                 }
-                None => match scale_from_motion(&map, self.lost_step, elapsed) {
+                None => match scale_from_motion(&map, self.lost.step(), elapsed) {
                     Some(s) => {
                         rescale(&mut map, t_w1, s);
                         "new map, scale not joined to the lost one (segment break), baseline \
@@ -350,7 +328,7 @@ impl MonoTracker {
         let pose = map.last().map_or(*t_w1, |kf| kf.t_wc);
         // The initialising pair's motion, spread over the frames between them, predicts the
         // next frame.
-        self.motion.restart(t_w1, &pose, elapsed);
+        self.coast.motion.restart(t_w1, &pose, elapsed);
         self.state = State::Tracking {
             map,
             first_residual: None,
@@ -359,28 +337,29 @@ impl MonoTracker {
     }
 
     /// After a failed tracking attempt, a new map from `current` and the newest keyframe of
-    /// the lost `map` with enough parallax (newest first), at once: the frame is not lost, and
+    /// the lost map with enough parallax (newest first), at once: the frame is not lost, and
     /// the new map starts at that keyframe's pose with its scale joined to the lost map's
-    /// (`start_map`). Gives the map back when no keyframe initialises.
-    fn restart_from_window(
-        &mut self,
-        map: LocalMap,
-        current: &Features,
-        start: Instant,
-    ) -> Result<FrameEstimate, LocalMap> {
+    /// (`start_map`). `None` when no keyframe initialises.
+    fn restart_from_window(&mut self, current: &Features, start: Instant) -> Option<FrameEstimate> {
         let rules = self.init_rules();
-        let restarted = map.keyframes.iter().rev().find_map(|kf| {
-            let frames = (kf.frame, self.frame);
-            let (new, quality, pose_quality) =
-                initialise(&rules, &kf.features, &kf.t_wc, current, frames).ok()?;
-            Some((new, kf.t_wc, self.frame - kf.frame, quality, pose_quality))
-        });
-        let Some((new, t_w1, elapsed, quality, pose_quality)) = restarted else {
-            return Err(map);
-        };
-        self.lost_map = Some(map);
+        let now = self.late.frame();
+        let (new, t_w1, elapsed, quality, pose_quality) =
+            self.lost.map()?.keyframes.iter().rev().find_map(|kf| {
+                let (new, quality, pose_quality) =
+                    initialise(&rules, &kf.features, &kf.t_wc, current, (kf.frame, now)).ok()?;
+                Some((new, kf.t_wc, now - kf.frame, quality, pose_quality))
+            })?;
         let estimate = self.start_map(new, &t_w1, elapsed, quality, start);
-        Ok(estimate.judged(pose_quality))
+        Some(estimate.judged(pose_quality))
+    }
+
+    /// Waiting for an initialisation with `reference`, the current frame, at `t_wc`.
+    fn initialising(&self, reference: Features, t_wc: Isometry3<f64>) -> State {
+        State::Initialising {
+            reference,
+            t_wc,
+            waiting: Waiting::from(self.late.frame()),
+        }
     }
 
     /// The rules of a two-view initialisation.
@@ -403,10 +382,7 @@ impl MonoTracker {
         size: (u32, u32),
         predicted: Isometry3<f64>,
     ) -> Option<LocalMap> {
-        let map = self.lost_map.as_ref()?;
         let scale_factor = self.cfg.orb.scale_factor;
-        let (query, positions, _) =
-            map.project_points(&self.camera, &predicted.inverse(), size, scale_factor);
         let locator = PointLocator {
             camera: &self.camera,
             matching: &self.cfg.matching,
@@ -414,54 +390,39 @@ impl MonoTracker {
             pnp: &self.cfg.pnp,
             min_inliers: self.cfg.min_keyframe_inliers,
         };
-        let located = locator.locate(&query, &positions, current, predicted.inverse());
-        located.fit.ok()?;
-        self.lost_map.take()
-    }
-
-    /// A frame reported lost at the prediction, with the reason.
-    fn skipped(predicted: Isometry3<f64>, why: String, start: Instant) -> FrameEstimate {
-        Self::estimate(
-            predicted,
-            TrackStatus::Lost,
-            FrameQuality::default(),
-            Some(why),
-            start,
-        )
+        self.lost.relocate(|map| {
+            let (query, positions, _) =
+                map.project_points(locator.camera, &predicted.inverse(), size, scale_factor);
+            let located = locator.locate(&query, &positions, current, predicted.inverse());
+            located.fit.is_ok()
+        })
     }
 }
 
 impl Tracker for MonoTracker {
     fn track(&mut self, frame: &Frame) -> FrameEstimate {
-        self.revised.clear();
-        let predicted = self.motion.predict().unwrap_or_else(Isometry3::identity);
+        self.late.begin_frame();
+        let predicted = self.coast.predict();
         let estimate = self.track_from(frame, predicted);
-        self.frame += 1;
+        self.late.end_frame();
         // A lost frame coasts on the motion model for a while (so that a new map is placed
         // where the camera has gone), then the model holds still.
-        if estimate.status == TrackStatus::Lost && self.initialised_once {
-            if self.coasted < MAX_COAST_FRAMES {
-                self.motion.update(predicted);
-                self.coasted += 1;
-            } else {
-                self.motion.reset_velocity();
-            }
-        } else {
-            self.coasted = 0;
-        }
+        let lost = estimate.status == TrackStatus::Lost && self.initialised_once;
+        self.coast.end_frame(lost, predicted);
         estimate
     }
 
     /// While initialising: the frames after the reference (located late once a map exists).
     fn pending(&self) -> usize {
-        match &self.state {
-            State::Initialising { since, .. } => self.frame.saturating_sub(since + 1),
-            _ => 0,
-        }
+        let waiting = match &self.state {
+            State::Initialising { waiting, .. } => Some(waiting),
+            _ => None,
+        };
+        self.late.pending(waiting)
     }
 
     fn revised(&mut self) -> Vec<(usize, FrameEstimate)> {
-        std::mem::take(&mut self.revised)
+        self.late.take()
     }
 }
 
@@ -471,7 +432,7 @@ impl MonoTracker {
         let start = Instant::now();
         let current = match self.orb.detect_and_describe(frame.image()) {
             Ok(f) => f,
-            Err(e) => return Self::skipped(predicted, e.to_string(), start),
+            Err(e) => return FrameEstimate::lost(predicted, e.to_string(), start),
         };
         let tracking = matches!(self.state, State::Tracking { .. });
         if !tracking && current.len() < self.cfg.min_init_points {
@@ -481,7 +442,7 @@ impl MonoTracker {
                 current.len(),
                 self.cfg.min_init_points
             );
-            return Self::skipped(predicted, why, start);
+            return FrameEstimate::lost(predicted, why, start);
         }
         if !tracking {
             if let Some(map) = self.relocalised(&current, frame.image().dimensions(), predicted) {
@@ -495,65 +456,54 @@ impl MonoTracker {
         }
         match std::mem::replace(&mut self.state, State::Empty) {
             State::Empty => {
-                let first = !self.initialised_once && self.motion.predict().is_none();
-                self.state = State::Initialising {
-                    reference: current,
-                    t_wc: predicted,
-                    since: self.frame,
-                    waited: Vec::new(),
-                };
+                let first = !self.initialised_once && self.coast.motion.predict().is_none();
+                self.state = self.initialising(current, predicted);
                 if first {
                     // The first frame defines the world frame: it is tracked by definition.
-                    self.motion.update(predicted);
+                    self.coast.motion.update(predicted);
                     let quality = FrameQuality {
                         keyframe: true,
                         ..FrameQuality::default()
                     };
                     Self::estimate(predicted, TrackStatus::Ok, quality, None, start)
                 } else {
-                    Self::skipped(predicted, "initialising: new reference".into(), start)
+                    FrameEstimate::lost(predicted, "initialising: new reference".into(), start)
                 }
             }
             State::Initialising {
                 reference,
                 t_wc,
-                since,
-                mut waited,
+                mut waiting,
             } => {
                 let rules = self.init_rules();
-                let elapsed = self.frame - since;
-                match initialise(&rules, &reference, &t_wc, &current, (since, self.frame)) {
+                let (since, now) = (waiting.since(), self.late.frame());
+                match initialise(&rules, &reference, &t_wc, &current, (since, now)) {
                     Ok((map, quality, pose_quality)) => {
                         let estimate = self
-                            .start_map(map, &t_wc, elapsed, quality, start)
+                            .start_map(map, &t_wc, now - since, quality, start)
                             .judged(pose_quality);
                         if let State::Tracking { map, .. } = &self.state {
                             let size = frame.image().dimensions();
-                            let now = (self.frame, &estimate.pose_wc);
-                            self.revised =
-                                self.locate_waited(map, &waited, (since, &t_wc), now, size);
+                            let at = (now, &estimate.pose_wc);
+                            let revised = self.locate_waited(map, &waiting, &t_wc, at, size);
+                            self.late.hand_over(revised);
                         }
                         estimate
                     }
                     Err(failure) => {
-                        let keep = failure.keep_reference && elapsed <= self.cfg.max_init_frames;
+                        let keep =
+                            failure.keep_reference && now - since <= self.cfg.max_init_frames;
                         self.state = if keep {
-                            waited.push((self.frame, current));
+                            waiting.push(now, current);
                             State::Initialising {
                                 reference,
                                 t_wc,
-                                since,
-                                waited,
+                                waiting,
                             }
                         } else {
-                            State::Initialising {
-                                reference: current,
-                                t_wc: predicted,
-                                since: self.frame,
-                                waited: Vec::new(),
-                            }
+                            self.initialising(current, predicted)
                         };
-                        Self::skipped(predicted, failure.why, start)
+                        FrameEstimate::lost(predicted, failure.why, start)
                     }
                 }
             }

@@ -72,10 +72,11 @@ fn a_failed_frame_restarts_from_a_window_keyframe_with_the_map_scale() -> TestRe
     };
     // Frame 10, as if its tracking had failed.
     let current = tracker.orb.detect_and_describe(frame(10)?.image())?;
-    let Ok(restart) = tracker.restart_from_window(map, &current, Instant::now()) else {
+    tracker.lost.lose(map, tracker.coast.motion.step_length());
+    let Some(restart) = tracker.restart_from_window(&current, Instant::now()) else {
         return Err("no window keyframe initialised with frame 10".into());
     };
-    tracker.frame += 1;
+    tracker.late.end_frame();
     assert_eq!(restart.status, TrackStatus::Reinitialised);
     let message = restart.message.clone().unwrap_or_default();
     assert!(message.contains("joined to the lost one"), "{message}");
