@@ -8,7 +8,9 @@
 //! - [`match_descriptors`]: brute-force Hamming kNN-2 with ratio test, cross-check and maximum
 //!   distance, parallel with rayon;
 //! - [`match_windowed`]: the same restricted to a radius around predicted positions, for
-//!   frame-to-frame tracking.
+//!   frame-to-frame tracking;
+//! - [`match_stereo`]: left features matched along their rows in the right image of a
+//!   rectified pair, with sub-pixel disparities.
 //!
 //! Positions are level-0 pixels, x right, y down, `(0, 0)` the centre of the top-left pixel.
 //!
@@ -36,11 +38,13 @@ pub mod matching;
 pub mod orb;
 pub mod pattern;
 mod pyramid;
+pub mod stereo;
 pub mod windowed;
 
 pub use descriptor::Descriptor;
 pub use matching::{knn2, match_descriptors, Knn2, Match, MatchConfig};
 pub use orb::{Feature, Features, Orb, OrbConfig};
+pub use stereo::{match_stereo, StereoConfig, StereoMatch};
 pub use windowed::match_windowed;
 
 /// Errors of feature detection and matching.

@@ -1,0 +1,50 @@
+//! Criterion benchmark of stereo matching (`match_stereo`) between the ORB features of the two
+//! images of a rectified pair: `kitti_06` frame 0 (`image_0`, `image_1`, 1226x370, read from
+//! `../shared/data` relative to the workspace root) when present, else a rendered street pair.
+//! The ORB detection of both images is outside the timed loop.
+
+use std::path::PathBuf;
+
+use criterion::{criterion_group, criterion_main, Criterion};
+use nalgebra::Translation3;
+use vofront_features::{match_stereo, Orb, OrbConfig, StereoConfig};
+use vofront_fixtures::driving::DrivingSequence;
+use vofront_fixtures::image2d::to_gray8;
+use vofront_image::Image;
+
+/// The KITTI pair when readable, else a rendered one.
+fn pair() -> (&'static str, image::GrayImage, image::GrayImage) {
+    let root = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../../shared/data/kitti_06");
+    let read = |cam: &str| image::open(root.join(cam).join("000000.png")).map(|i| i.to_luma8());
+    match (read("image_0"), read("image_1")) {
+        (Ok(l), Ok(r)) => ("kitti_06", l, r),
+        _ => {
+            eprintln!(
+                "kitti_06 not readable under {}: a rendered pair",
+                root.display()
+            );
+            let drive = DrivingSequence::new(3, 1);
+            let (w, h) = drive.size;
+            let right = drive.poses_wc[0] * Translation3::new(0.54, 0.0, 0.0);
+            let render = |pose| to_gray8(&drive.scene.render(&drive.camera, w, h, pose).image);
+            ("rendered", render(&drive.poses_wc[0]), render(&right))
+        }
+    }
+}
+
+fn stereo(c: &mut Criterion) {
+    let (name, left, right) = pair();
+    let orb = Orb::new(OrbConfig::default()).expect("valid config");
+    let fl = orb.detect_and_describe(&left).expect("ORB");
+    let fr = orb.detect_and_describe(&right).expect("ORB");
+    let (il, ir) = (Image::from_gray(&left), Image::from_gray(&right));
+    let cfg = StereoConfig::default();
+    let n = match_stereo(&fl, &fr, &il, &ir, &cfg).map_or(0, |m| m.len());
+    eprintln!("{name}: {n} stereo matches of {} left features", fl.len());
+    c.bench_function(&format!("match_stereo_{name}"), |b| {
+        b.iter(|| match_stereo(&fl, &fr, &il, &ir, &cfg).map(|m| m.len()))
+    });
+}
+
+criterion_group!(benches, stereo);
+criterion_main!(benches);
