@@ -378,8 +378,9 @@ impl LocalMap {
 
     /// Levenberg-Marquardt ([`levenberg_marquardt`] on [`PointViews`], poses fixed) on the
     /// point's reprojection errors, each divided by its noise scale `s`, when it has two or
-    /// more views; false when a view does not see it at the start, or when the result is
-    /// behind a camera or off by more than `max_px s` in a view.
+    /// more views; false when a view does not see it at the start or at a trial point (as
+    /// Gauss-Newton dropped a point that left a view), or when the result is behind a camera
+    /// or off by more than `max_px s` in a view.
     fn refine_point(&mut self, camera: &Camera, id: PointId, max_px: f64) -> bool {
         let views = self.views(id);
         let Some(p) = self.points.get_mut(&id) else {
