@@ -179,7 +179,7 @@ impl Problem<6> for Reprojection<'_> {
     fn evaluate(&mut self, t: &Isometry3<f64>, rows: &mut Rows<6>) {
         for &i in self.indices {
             let x = (t * self.world[i]).coords;
-            let Some((pixel, jpix)) = project_with_jacobian(self.camera, &x) else {
+            let Some((pixel, jpix)) = project_in_front(self.camera, &x) else {
                 continue;
             };
             let w = 1.0 / self.sigmas[i];
@@ -195,22 +195,17 @@ impl Problem<6> for Reprojection<'_> {
     }
 }
 
-/// Pixel `u = K D(x / z, y / z)` of the camera-frame point `x` (distortion `D` included) and
-/// its Jacobian `du/dx` (2 x 3, pixels per metre); `None` when `z <= MIN_DEPTH` (behind the camera).
-pub(crate) fn project_with_jacobian(
+/// Pixel and Jacobian `du/dx` (pixels per metre) of the camera-frame point `x` through the
+/// full camera model ([`Camera::project_with_jacobian`]); `None` at or behind the camera plane
+/// (`z <= MIN_DEPTH`, [`crate::residual::MIN_DEPTH`]) or outside the lens's validity range.
+pub(crate) fn project_in_front(
     camera: &Camera,
     x: &Vector3<f64>,
 ) -> Option<(Vector2<f64>, Matrix2x3<f64>)> {
     if x.z <= crate::residual::MIN_DEPTH {
         return None;
     }
-    let k = &camera.pinhole;
-    let iz = 1.0 / x.z;
-    let xn = Vector2::new(x.x * iz, x.y * iz);
-    let d = camera.distortion.distort_jacobian(&xn);
-    let dxn = Matrix2x3::new(iz, 0.0, -x.x * iz * iz, 0.0, iz, -x.y * iz * iz);
-    let jpix = nalgebra::Matrix2::new(k.fx, 0.0, 0.0, k.fy) * d * dxn;
-    Some((camera.normalized_to_pixel(&xn), jpix))
+    camera.project_with_jacobian(x)
 }
 
 /// Pixel reprojection error of correspondence `i` under `T_cw`, infinite behind the camera.

@@ -11,8 +11,10 @@
 //!   parameter count, mergeable so that rayon can reduce partial sums;
 //! - [`solve`]: the damped step `(H + lambda D) d = -g` with degeneracy detection;
 //! - [`lm`]: the one Levenberg-Marquardt driver, generic over the problem and its linear
-//!   system ([`NormalEquations`] or a Schur complement), with one accept/reject rule, one
+//!   system ([`NormalEquations`] or a [`SchurSystem`]), with one accept/reject rule, one
 //!   damping update and one set of stop reasons;
+//! - [`schur`]: the block normal equations of a bundle adjustment (pose blocks of `P`
+//!   parameters, point blocks of `Q`) and their Schur-complement solve;
 //! - [`quality`]: the quality record (verdict, reasons, support, covariance) of every estimate;
 //! - [`secant`]: a Gauss-Newton covariance widened where the cost is flatter than its
 //!   quadratic model;
@@ -51,6 +53,7 @@ pub mod normal;
 pub mod quality;
 pub mod sandwich;
 pub mod scale;
+pub mod schur;
 pub mod secant;
 pub mod solve;
 
@@ -63,5 +66,6 @@ pub use normal::NormalEquations;
 pub use quality::{Quality, QualityConfig, Reason, Support, Uncertainty, Verdict};
 pub use sandwich::sandwich_covariance;
 pub use scale::{mad_sigma, mad_sigma_about_zero, median_in_place};
+pub use schur::{Coupling, PointBlock, SchurStep, SchurSystem};
 pub use secant::secant_covariance;
 pub use solve::{scaled_condition, solve_damped, Damping, SolveError};

@@ -5,7 +5,7 @@
 //! evaluates its residuals at a state, gives their cost, accumulates `H = J^T W J` and
 //! `g = J^T W r` into a [`LinearSystem`] and retracts a step; it may do any of that in
 //! parallel. The linear system is pluggable: [`NormalEquations`] for small dense problems, a
-//! Schur-complement system for bundle adjustment. Each iteration:
+//! Schur-complement system ([`crate::schur::SchurSystem`]) for bundle adjustment. Each iteration:
 //!
 //! 1. `delta` solves `(H + lambda D) delta = -g` ([`LinearSystem::solve`]);
 //! 2. the step is *small* when `|delta| < min_step` in the problem's metric

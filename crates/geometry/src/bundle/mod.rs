@@ -10,8 +10,9 @@
 //! are in pixels of a scale-1 observation; cost
 //! `sum_o s^2 rho(|r_o| / s)` with `rho` a robust loss of `vofront_robust` and `s` its scale in
 //! pixels ([`BundleConfig::sigma_px`]). Each step eliminates the points (Schur complement on
-//! their 3x3 blocks, module `schur`) and solves the dense reduced camera system by Cholesky;
-//! the normal equations are accumulated in parallel (module `problem`).
+//! their 3x3 blocks, [`vofront_robust::schur`] with 6-dof pose and 3-dof point blocks) and
+//! solves the dense reduced camera system by Cholesky; the normal equations are accumulated in
+//! parallel (module `problem`).
 //!
 //! **Gauge.** The oldest [`BundleConfig::fixed_poses`] keyframes (the first entries of
 //! [`BundleProblem::poses`]) are held. One fixed keyframe removes the six rigid degrees of
@@ -60,7 +61,6 @@
 //! ```
 
 mod problem;
-mod schur;
 
 use nalgebra::{Isometry3, Point3, Vector2};
 use rayon::prelude::*;
@@ -71,7 +71,14 @@ use vofront_robust::{
 use crate::camera::Camera;
 use crate::error::GeometryError;
 use problem::{BundleState, Linearized, Reprojection};
-pub use schur::{BundleStep, SchurSystem};
+
+/// The increment of a bundle: `poses` holds the `(rho, phi)` left increments of the free
+/// poses (oldest free pose first), `points` the world-frame point increments (metres).
+pub type BundleStep = vofront_robust::SchurStep<6, 3>;
+
+/// The normal equations of a bundle at one state in block form: 6x6 pose blocks, 3x3 point
+/// blocks ([`vofront_robust::SchurSystem`]).
+pub type SchurSystem = vofront_robust::SchurSystem<6, 3>;
 
 /// One observation: keyframe `pose` saw world point `point` at the (distorted) `pixel`.
 #[derive(Debug, Clone, Copy, PartialEq)]

@@ -10,17 +10,14 @@
 //! the scale `s` (pixels): `w_o = psi(|r_o| / s) / (|r_o| / s)`, and the cost is
 //! `sum_o s^2 rho(|r_o| / s)` over the active observations.
 
-use nalgebra::{
-    Isometry3, Matrix2x3, Matrix2x6, Matrix3, Matrix6, Point3, Vector2, Vector3, Vector6,
-};
+use nalgebra::{Isometry3, Matrix2x3, Matrix2x6, Matrix3, Matrix6, Point3, Vector2, Vector6};
 use rayon::prelude::*;
-use vofront_robust::{LmProblem, Loss, RobustLoss};
+use vofront_robust::{Coupling, LmProblem, Loss, PointBlock, RobustLoss};
 
-use super::schur::{BundleStep, Coupling, PointBlock, SchurSystem};
-use super::Observation;
+use super::{BundleStep, Observation, SchurSystem};
 use crate::camera::Camera;
 use crate::lie::{point_jacobian, retract_left};
-use crate::pnp::project_with_jacobian;
+use crate::pnp::project_in_front;
 
 /// Keyframe poses `T_cw` (oldest first) and world points.
 #[derive(Debug, Clone, PartialEq)]
@@ -92,7 +89,7 @@ impl LmProblem for Reprojection<'_> {
                 let obs = &observations[o];
                 let pose = &state.poses[obs.pose];
                 let x = (pose * state.points[obs.point]).coords;
-                match project_with_jacobian(camera, &x) {
+                match project_in_front(camera, &x) {
                     Some((pixel, a)) => {
                         let rotation: Matrix3<f64> =
                             pose.rotation.to_rotation_matrix().into_inner();
@@ -146,11 +143,7 @@ impl LmProblem for Reprojection<'_> {
             .by_point
             .par_iter()
             .map(|list| {
-                let mut block = PointBlock {
-                    v: Matrix3::zeros(),
-                    gp: Vector3::zeros(),
-                    couplings: Vec::new(),
-                };
+                let mut block = PointBlock::zeros();
                 for &k in list.iter().filter(|&&k| valid(k)) {
                     let row = &rows[k];
                     let wj = self.weight(row) * row.point.transpose();
