@@ -20,6 +20,7 @@ pub mod graph;
 pub mod keyframe;
 pub mod mono;
 pub mod motion;
+pub mod registry;
 pub mod run;
 
 use std::time::Instant;
