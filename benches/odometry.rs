@@ -4,12 +4,12 @@
 
 use criterion::{criterion_group, criterion_main, Criterion};
 use vofront::dataset::Frame;
-use vofront::fixtures::image2d::to_gray8;
-use vofront::fixtures::scene::{default_camera, room_trajectory, Scene};
 use vofront::odometry::direct::{DirectTracker, DirectTrackerConfig};
 use vofront::odometry::feature_rgbd::{FeatureRgbdConfig, FeatureRgbdTracker};
 use vofront::odometry::mono::{MonoConfig, MonoTracker};
 use vofront::odometry::Tracker;
+use vofront_fixtures::image2d::to_gray8;
+use vofront_fixtures::scene::{default_camera, room_trajectory, Scene};
 
 const FRAMES: usize = 12;
 

@@ -8,7 +8,12 @@
 //! - [`geometry`]: two-view and PnP geometry (re-exports `core`'s camera and Lie modules);
 //! - [`features`]: ORB detection, description and Hamming matching;
 //! - [`direct`]: photometric alignment and KLT;
-//! - [`fixtures`]: synthetic scenes with exact ground truth.
+//! - `fixtures` (feature `fixtures`, on with the default `cli`): the synthetic scenes of
+//!   `vofront-fixtures`, with exact ground truth.
+//!
+//! Features: `cli` (default) builds the `vofront` program (command-line parsing, progress bar,
+//! signal handling, the synthetic demo); a library user needs none of it:
+//! `vofront = { version = "0.1", default-features = false }`.
 #![warn(missing_docs)]
 
 pub mod dataset;
@@ -24,6 +29,7 @@ pub mod trajectory;
 pub use vofront_core as core;
 pub use vofront_direct as direct;
 pub use vofront_features as features;
+#[cfg(feature = "fixtures")]
 pub use vofront_fixtures as fixtures;
 pub use vofront_geometry as geometry;
 pub use vofront_image as image;

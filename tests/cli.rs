@@ -6,8 +6,8 @@ use std::process::{Command, Output};
 
 use nalgebra::{Isometry3, Matrix3, Point3, Rotation3, UnitQuaternion, Vector2, Vector3};
 use serde_json::Value;
-use vofront::fixtures::image2d::{textured_image, to_gray8, translation, warped_textured_image};
-use vofront::fixtures::scene::{default_camera, pose_wc, Scene};
+use vofront_fixtures::image2d::{textured_image, to_gray8, translation, warped_textured_image};
+use vofront_fixtures::scene::{default_camera, pose_wc, Scene};
 
 /// Feature pose on a rendered pair with ~0.2 m baseline: rotation error bound, degrees
 /// (pixel-accurate matches on 600+ inliers give ~0.05 deg; 0.3 leaves room for the seed).
@@ -375,8 +375,8 @@ fn demo_without_arguments_reports_errors_against_truth_and_writes_pictures() {
 
 #[test]
 fn odometry_writes_trajectory_metrics_and_plot_and_eval_reads_them() {
-    use vofront::fixtures::scene::room_trajectory;
-    use vofront::fixtures::tum::write_tum_sequence;
+    use vofront_fixtures::scene::room_trajectory;
+    use vofront_fixtures::tum::write_tum_sequence;
     let dir = temp_dir("odometry");
     let seq = dir.join("seq");
     write_tum_sequence(

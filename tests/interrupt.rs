@@ -9,10 +9,10 @@ use std::sync::OnceLock;
 use std::time::{Duration, Instant};
 
 use serde_json::Value;
-use vofront::fixtures::faults::camera_for_width;
-use vofront::fixtures::scene::{room_trajectory, Scene};
-use vofront::fixtures::tum::write_tum_sequence;
 use vofront::trajectory::Trajectory;
+use vofront_fixtures::faults::camera_for_width;
+use vofront_fixtures::scene::{room_trajectory, Scene};
+use vofront_fixtures::tum::write_tum_sequence;
 
 /// Frames of the test sequence: enough that a run signalled after [`SIGNAL_AFTER`] frames is
 /// still far from its end.

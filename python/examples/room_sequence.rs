@@ -3,8 +3,8 @@
 
 use std::path::Path;
 
-use vofront::fixtures::scene::{default_camera, room_trajectory, Scene};
-use vofront::fixtures::tum::write_tum_sequence;
+use vofront_fixtures::scene::{default_camera, room_trajectory, Scene};
+use vofront_fixtures::tum::write_tum_sequence;
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {
     let args: Vec<String> = std::env::args().collect();

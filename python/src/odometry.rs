@@ -4,15 +4,12 @@ use std::path::PathBuf;
 use std::sync::Mutex;
 
 use numpy::PyArray2;
+use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
 use pyo3::types::{PyDict, PyList};
-use vofront::core::camera::{Camera, Pinhole};
-use vofront::dataset::{tum::tum_preset_for, Dataset, DatasetKind, Frame};
-use vofront::eval::{ate, Alignment, EvalConfig};
-use vofront::odometry::direct::{DirectTracker, DirectTrackerConfig};
-use vofront::odometry::feature_rgbd::{FeatureRgbdConfig, FeatureRgbdTracker};
-use vofront::odometry::mono::{MonoConfig, MonoTracker};
-use vofront::odometry::run::run;
+use vofront::dataset::{Dataset, Frame};
+use vofront::odometry::registry::{OdometryError, Session, TrackerKind, TrackerOptions};
+use vofront::odometry::run::{FrameRecord, RunControl};
 use vofront::odometry::{FrameEstimate, Tracker};
 use vofront::trajectory::Trajectory;
 
@@ -20,50 +17,20 @@ use crate::convert::{array2, bad, camera, depth, gray8, json_to_py, pose_matrix}
 use crate::errors::{dataset_error, failed, release};
 use crate::eval::{stats_dict, tum_rows};
 
-/// The odometry methods, by the names of `vofront odometry --method`.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-enum Method {
-    Direct,
-    FeatureRgbd,
-    Feature,
+/// A registry error: `ValueError` for a bad name or a dataset without the depth the method
+/// needs, `VofrontError` otherwise.
+fn odometry_error(e: OdometryError) -> PyErr {
+    match e {
+        OdometryError::UnknownTracker(_) | OdometryError::NoDepth { .. } => {
+            PyValueError::new_err(e.to_string())
+        }
+        _ => failed(e),
+    }
 }
 
-impl Method {
-    fn parse(name: &str) -> PyResult<Self> {
-        match name {
-            "direct" => Ok(Method::Direct),
-            "feature-rgbd" | "feature_rgbd" => Ok(Method::FeatureRgbd),
-            "feature" => Ok(Method::Feature),
-            _ => Err(bad(format!(
-                "method must be 'direct', 'feature-rgbd' or 'feature', got '{name}'"
-            ))),
-        }
-    }
-
-    fn needs_depth(self) -> bool {
-        self != Method::Feature
-    }
-
-    fn tracker(self, camera: Camera) -> PyResult<Box<dyn Tracker + Send>> {
-        Ok(match self {
-            Method::Direct => Box::new(DirectTracker::new(camera, DirectTrackerConfig::default())),
-            Method::FeatureRgbd => Box::new(
-                FeatureRgbdTracker::new(camera, FeatureRgbdConfig::default()).map_err(failed)?,
-            ),
-            Method::Feature => {
-                Box::new(MonoTracker::new(camera, MonoConfig::default()).map_err(failed)?)
-            }
-        })
-    }
-
-    /// Trajectory alignment for evaluation: monocular scale is arbitrary.
-    fn alignment(self) -> Alignment {
-        if self == Method::Feature {
-            Alignment::Sim3
-        } else {
-            Alignment::Se3
-        }
-    }
+/// The tracker `method` names (`direct`, `feature-rgbd`, `mono`, or an alias).
+fn tracker_kind(method: &str) -> PyResult<TrackerKind> {
+    method.parse().map_err(odometry_error)
 }
 
 /// A frame estimate as a dict: `timestamp`, `pose_wc` (4x4 camera-to-world), `status`
@@ -105,11 +72,12 @@ fn estimate_dict<'py>(
 /// Frame-by-frame visual odometry with one of the library's trackers.
 ///
 /// `method`: `direct` (RGB-D photometric SE(3) to the keyframe), `feature-rgbd` (ORB + depth
-/// + PnP RANSAC) or `feature` (monocular ORB, scale arbitrary). `K` 3x3 pixels, `dist`
-/// OpenCV `(k1, k2, p1, p2, k3)`; `depth_scale` divides uint16 depth maps into metres.
+/// + PnP RANSAC) or `mono` (monocular ORB, scale arbitrary; `feature` is its former name,
+/// still accepted), as `vofront odometry --method`. `K` 3x3 pixels, `dist` OpenCV
+/// `(k1, k2, p1, p2, k3)`; `depth_scale` divides uint16 depth maps into metres.
 #[pyclass(module = "vofront")]
 pub struct Odometry {
-    method: Method,
+    method: TrackerKind,
     /// Locked while a frame is tracked (the GIL is released then).
     tracker: Mutex<Box<dyn Tracker + Send>>,
     depth_scale: f64,
@@ -128,11 +96,14 @@ impl Odometry {
         dist: Option<&Bound<'_, PyAny>>,
         depth_scale: f64,
     ) -> PyResult<Self> {
-        let method = Method::parse(method)?;
+        let method = tracker_kind(method)?;
         let camera = camera(K, dist)?;
+        let tracker = method
+            .build(camera, &TrackerOptions::default())
+            .map_err(odometry_error)?;
         Ok(Self {
             method,
-            tracker: Mutex::new(method.tracker(camera)?),
+            tracker: Mutex::new(tracker),
             depth_scale,
             timestamps: Vec::new(),
         })
@@ -207,29 +178,15 @@ impl Odometry {
     }
 }
 
-/// The camera for a dataset without explicit intrinsics: its calibration file, a TUM preset
-/// recognised from the folder name, then the ROS default (525, 525, 319.5, 239.5).
-fn dataset_camera(dataset: &Dataset) -> Camera {
-    dataset
-        .camera
-        .or_else(|| (dataset.kind == DatasetKind::Tum).then(|| tum_preset_for(&dataset.root))?)
-        .unwrap_or_else(|| {
-            Camera::pinhole(Pinhole {
-                fx: 525.0,
-                fy: 525.0,
-                cx: 319.5,
-                cy: 239.5,
-            })
-        })
-}
-
-/// Tracks a TUM RGB-D, KITTI or EuRoC folder as `vofront odometry` does.
+/// Tracks a TUM RGB-D, KITTI or EuRoC folder as `vofront odometry` does (the same camera
+/// choice, tracker and evaluation).
 ///
 /// Returns a dict: `trajectory` (N, 8) TUM rows `t tx ty tz qx qy qz qw` of the tracked
 /// frames (camera-to-world), `frames` (one estimate dict per frame; an unreadable frame has
-/// `status` `unreadable` and its `message`), `summary` counts, and with ground truth
-/// `ground_truth` (M, 8) and `ate` (statistics in metres, aligned as the CLI aligns:
-/// SE(3), Sim(3) for `feature`; None with an `ate_error` message when it cannot be computed).
+/// `status` `unreadable` and its `message`), `summary` counts, `camera` (its `source`), and with
+/// ground truth `ground_truth` (M, 8) of the CAMERA (EuRoC body poses times `T_BS`, what the
+/// trajectory is compared with) and `ate` (statistics in metres, aligned as the CLI aligns:
+/// SE(3), Sim(3) for `mono`; None with an `ate_error` message when it cannot be computed).
 #[pyfunction]
 #[pyo3(signature = (dataset_path, method = "direct", K = None, dist = None, max_frames = None))]
 #[allow(non_snake_case)]
@@ -241,21 +198,27 @@ pub fn run_odometry<'py>(
     dist: Option<&Bound<'py, PyAny>>,
     max_frames: Option<usize>,
 ) -> PyResult<Bound<'py, PyDict>> {
-    let method = Method::parse(method)?;
+    let method = tracker_kind(method)?;
     let dataset = release(py, || Dataset::open(&dataset_path).map_err(dataset_error))?;
-    let camera = match K.filter(|k| !k.is_none()) {
-        Some(k) => camera(k, dist)?,
-        None => dataset_camera(&dataset),
+    let given = match K.filter(|k| !k.is_none()) {
+        Some(k) => Some((camera(k, dist)?, "K argument")),
+        None => None,
     };
-    if method.needs_depth() && dataset.frames.iter().all(|f| f.depth.is_none()) {
-        return Err(bad(format!(
-            "{}: the {method:?} method needs depth, and this dataset has none",
-            dataset_path.display()
-        )));
-    }
-    let mut tracker = method.tracker(camera)?;
-    let out = release(py, || {
-        Ok(run(&dataset, tracker.as_mut(), max_frames, |_, _| {}))
+    let session = Session::new(dataset, method, given).map_err(odometry_error)?;
+    let mut tracker = session
+        .tracker(&TrackerOptions::default())
+        .map_err(odometry_error)?;
+    let (out, evaluation) = release(py, || {
+        let control = RunControl {
+            max_frames,
+            stop: None,
+        };
+        let mut no_sink = |_: &FrameRecord| Ok::<(), std::io::Error>(());
+        let out = session
+            .run(tracker.as_mut(), &control, &mut no_sink)
+            .map_err(odometry_error)?;
+        let evaluation = session.evaluate(&out.trajectory);
+        Ok((out, evaluation))
     })?;
     let result = PyDict::new(py);
     result.set_item("trajectory", trajectory_array(py, &out.trajectory))?;
@@ -286,13 +249,15 @@ pub fn run_odometry<'py>(
     summary.set_item("keyframes", s.keyframes)?;
     summary.set_item("mean_ms", s.mean_ms)?;
     result.set_item("summary", summary)?;
-    if let Some(gt) = &dataset.ground_truth {
-        result.set_item("ground_truth", trajectory_array(py, gt))?;
-        let cfg = EvalConfig {
-            alignment: method.alignment(),
-            max_dt: dataset.ground_truth_tolerance,
-        };
-        match ate(gt, &out.trajectory, &cfg) {
+    let camera = PyDict::new(py);
+    camera.set_item("source", session.camera_origin.to_string())?;
+    result.set_item("camera", camera)?;
+    if let Some(evaluation) = evaluation {
+        result.set_item(
+            "ground_truth",
+            trajectory_array(py, &evaluation.ground_truth),
+        )?;
+        match evaluation.ate {
             Ok(a) => result.set_item("ate", stats_dict(py, &a.stats)?)?,
             Err(e) => {
                 result.set_item("ate", py.None())?;

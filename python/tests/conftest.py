@@ -88,3 +88,12 @@ def sequence(tmp_path_factory) -> Path:
 def truth_t21(pair: Path) -> np.ndarray:
     """`T_21 = inverse(T_w2) T_w1` of a rendered pair."""
     return np.linalg.inv(tum_pose(pair / "pose_curr.txt")) @ tum_pose(pair / "pose_prev.txt")
+
+
+@pytest.fixture(scope="session")
+def euroc_sequence(tmp_path_factory) -> Path:
+    """A 30-frame rendered EuRoC MAV sequence of the room, its camera mounted on the body by a
+    non-identity ``T_BS``, with ``camera_groundtruth.txt`` (TUM, the true camera poses)."""
+    root = tmp_path_factory.mktemp("euroc") / "room"
+    cargo_run("-p", "vofront-python", "--example", "euroc_sequence", "--", str(root), "30")
+    return root

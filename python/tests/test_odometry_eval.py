@@ -48,8 +48,9 @@ def test_odometry_tracks_rendered_sequence(sequence, method):
     assert ate["pairs"] == len(est) and ate["rmse"] < 0.005
 
 
-def test_feature_odometry_locates_the_frames_its_initialisation_waited_through(sequence):
-    vo = vofront.Odometry("feature", K_RENDER)
+@pytest.mark.parametrize("method", ["mono", "feature"])
+def test_mono_odometry_locates_the_frames_its_initialisation_waited_through(sequence, method):
+    vo = vofront.Odometry(method, K_RENDER)
     est, late, pending = [], {}, []
     for stamp, img, _ in frames(sequence):
         est.append(vo.track(img, timestamp=stamp))
@@ -90,6 +91,29 @@ def test_run_odometry_equals_cli(sequence, tmp_path):
     assert out["summary"]["frames"] == 12 and out["summary"]["lost"] == 0
     assert len(out["frames"]) == 12 and out["ate"]["rmse"] < 0.005
     np.testing.assert_allclose(out["ground_truth"], ground_truth(sequence), atol=1e-9)
+
+
+@pytest.mark.parametrize("method", ["mono", "feature"])
+def test_run_odometry_equals_cli_against_the_camera_ground_truth(euroc_sequence, tmp_path, method):
+    out = vofront.run_odometry(euroc_sequence, method)
+    traj = tmp_path / "traj.txt"
+    expected = cli_json("odometry", str(euroc_sequence), "--method", method, "--out", str(traj),
+                        "--metrics", str(tmp_path / "m.csv"))
+    assert expected["method"] == "mono" and expected["ate"]["alignment"] == "sim3"
+    assert out["summary"]["frames"] == expected["frames"] == 30
+    assert out["camera"]["source"] == expected["camera"]["source"]
+    np.testing.assert_allclose(out["trajectory"], np.loadtxt(traj, comments="#"), atol=1e-6)
+    # The ground truth is the camera's (body poses times T_BS), as the CLI evaluates against.
+    truth = np.loadtxt(euroc_sequence / "camera_groundtruth.txt")
+    np.testing.assert_allclose(out["ground_truth"][:, 1:4], truth[:, 1:4], atol=1e-6)
+    assert out["ate"]["rmse"] == pytest.approx(expected["ate"]["rmse"], rel=1e-9)
+    assert out["ate"]["rmse"] < 0.005
+
+
+def test_odometry_accepts_mono_and_depth_methods_refuse_euroc(euroc_sequence):
+    assert vofront.Odometry("mono", K_RENDER).frames == 0
+    with pytest.raises(ValueError, match="needs depth"):
+        vofront.run_odometry(euroc_sequence, "direct")
 
 
 def test_run_odometry_errors(tmp_path):

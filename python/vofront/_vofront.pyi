@@ -136,7 +136,8 @@ def klt(
 
 @final
 class Odometry:
-    """Frame-by-frame visual odometry (``direct``, ``feature-rgbd`` or ``feature``)."""
+    """Frame-by-frame visual odometry: ``direct``, ``feature-rgbd`` or ``mono`` (``feature``,
+    its former name, is still accepted), the trackers of ``vofront odometry --method``."""
 
     def __new__(
         cls,
@@ -157,7 +158,7 @@ class Odometry:
         without an estimate)."""
     def revised(self) -> list[Tuple[int, dict[str, Any]]]:
         """Late estimates made by the last ``track`` call for earlier frames, oldest first, as
-        ``(frame index, estimate dict)``: the ``feature`` tracker reports the frames its
+        ``(frame index, estimate dict)``: the ``mono`` tracker reports the frames its
         initialisation waits through ``lost``, then locates them once its map exists. Each
         list is handed over once."""
     @property
@@ -175,10 +176,14 @@ def run_odometry(
     dist: Optional[_ArrayLike] = None,
     max_frames: Optional[int] = None,
 ) -> dict[str, Any]:
-    """Tracks a TUM RGB-D, KITTI or EuRoC folder like ``vofront odometry``.
+    """Tracks a TUM RGB-D, KITTI or EuRoC folder like ``vofront odometry`` (the same
+    camera choice, tracker and evaluation: the same trajectory and ATE).
 
-    Keys: ``trajectory`` (N, 8) TUM rows, ``frames`` (per-frame dicts), ``summary``; with
-    ground truth ``ground_truth`` (M, 8) and ``ate`` (statistics, metres).
+    ``method``: ``direct``, ``feature-rgbd`` or ``mono`` (alias ``feature``). Keys:
+    ``trajectory`` (N, 8) TUM rows, ``frames`` (per-frame dicts), ``summary``, ``camera``
+    (``source``: where the camera came from); with ground truth ``ground_truth`` (M, 8), the
+    CAMERA poses (EuRoC: the body poses times ``T_BS``), and ``ate`` (statistics, metres;
+    SE(3)-aligned, Sim(3) for ``mono``; None with ``ate_error`` when it cannot be computed).
     """
 
 def ate(

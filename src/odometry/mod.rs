@@ -32,6 +32,7 @@ mod late;
 mod lost;
 pub mod mono;
 pub mod motion;
+pub mod registry;
 pub mod run;
 
 use std::time::Instant;

@@ -4,6 +4,7 @@ use std::path::PathBuf;
 
 use clap::{Args, Parser, Subcommand, ValueEnum};
 use vofront::geometry::camera::{Camera, Distortion, KannalaBrandt, Lens, Pinhole};
+use vofront::odometry::registry::{default_camera, TrackerKind};
 use vofront::presets::{camera_preset, principal_point_warning, PRESETS};
 
 /// vofront: visual-odometry front-end. Without a command, runs the synthetic demo.
@@ -134,12 +135,7 @@ impl CameraArgs {
                     names.join(", ")
                 )
             })?,
-            None => Camera::pinhole(Pinhole {
-                fx: 525.0,
-                fy: 525.0,
-                cx: 319.5,
-                cy: 239.5,
-            }),
+            None => default_camera(),
         };
         let k = base.pinhole;
         let pinhole = Pinhole::new(
@@ -307,29 +303,6 @@ pub struct EvalArgs {
     pub svg: bool,
 }
 
-/// Sequence trackers.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
-pub enum OdometryMethod {
-    /// RGB-D photometric SE(3) alignment to keyframes.
-    Direct,
-    /// RGB-D: ORB matched to keyframes with depth, PnP RANSAC and robust refinement.
-    FeatureRgbd,
-    /// Monocular ORB: two-view initialisation, triangulated points, PnP; arbitrary scale.
-    #[value(alias = "feature")]
-    Mono,
-}
-
-impl OdometryMethod {
-    /// The name used on the command line.
-    pub fn name(self) -> &'static str {
-        match self {
-            OdometryMethod::Direct => "direct",
-            OdometryMethod::FeatureRgbd => "feature-rgbd",
-            OdometryMethod::Mono => "mono",
-        }
-    }
-}
-
 /// Flags of `vofront odometry`.
 #[derive(Debug, Args)]
 #[command(
@@ -342,9 +315,9 @@ pub struct OdometryArgs {
     /// Dataset folder: TUM RGB-D (rgb.txt), KITTI odometry (image_0/, times.txt), EuRoC (mav0/)
     /// or a plain folder of images (timed by `--fps` or by timestamp file names).
     pub dataset: PathBuf,
-    /// Tracker (`feature` is an alias of `mono`).
-    #[arg(long, value_enum, default_value_t = OdometryMethod::Direct)]
-    pub method: OdometryMethod,
+    /// Tracker (`feature`, the former name of `mono`, is still accepted).
+    #[arg(long, value_enum, default_value_t = TrackerKind::Direct)]
+    pub method: TrackerKind,
     /// Camera; without flags: the camera the dataset names (KITTI calib.txt, EuRoC
     /// sensor.yaml, a TUM folder name or list header), else tum-ros.
     #[command(flatten)]

@@ -10,12 +10,12 @@ use vofront::fixtures::image2d::{textured_image, to_gray8, translation, warped_t
 use vofront::fixtures::scene::{default_camera, pose_wc, room_trajectory, Scene};
 use vofront::fixtures::tum::write_tum_sequence;
 use vofront::geometry::lie::{direction_angle_deg, rotation_angle_deg};
+use vofront::odometry::registry::{Session, TrackerKind, TrackerOptions};
 use vofront::pipeline::gray_plane;
 
 use vofront::report::two_view::Method;
 
-use crate::args::OdometryMethod;
-use crate::odometry_cmd::{alignment_for, make_tracker, report, track};
+use crate::odometry_cmd::{report, track};
 use crate::two_view::{estimate, print_text, write_pictures, Inputs};
 
 /// Where the demo writes its pictures.
@@ -116,21 +116,20 @@ fn run_sequence(room: &Scene, camera: vofront::geometry::Camera) -> Result<(), S
         "\nsynthetic TUM sequence of {SEQUENCE_FRAMES} frames written to {}",
         dir.display()
     );
-    for method in [
-        OdometryMethod::Direct,
-        OdometryMethod::FeatureRgbd,
-        OdometryMethod::Mono,
-    ] {
-        let name = method.name();
-        let mut tracker = make_tracker(method, camera, None)?;
-        let out = track(&dataset, tracker.as_mut(), None);
+    for &kind in TrackerKind::ALL {
+        let name = kind.name();
+        let session = Session::new(dataset.clone(), kind, Some((camera, "rendered")))
+            .map_err(|e| e.to_string())?;
+        let mut tracker = session
+            .tracker(&TrackerOptions::default())
+            .map_err(|e| e.to_string())?;
+        let out = track(&session.dataset, tracker.as_mut(), None);
         let traj = Path::new(OUT_DIR).join(format!("{name}_trajectory.txt"));
         out.trajectory.write_tum(&traj).map_err(|e| e.to_string())?;
         out!("{name:<12} ");
         report(
-            &dataset,
+            &session,
             &out,
-            alignment_for(method),
             Some(&Path::new(OUT_DIR).join(format!("{name}_plot.png"))),
         )?;
     }

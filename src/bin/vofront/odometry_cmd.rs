@@ -16,19 +16,16 @@ use std::sync::Arc;
 use indicatif::{ProgressBar, ProgressStyle};
 use serde_json::{json, Value};
 use vofront::dataset::{Dataset, DatasetConfig};
-use vofront::eval::{ate, plot::write_plot, rpe, Alignment, AteResult, EvalConfig, RpeResult};
+use vofront::eval::{plot::write_plot, AteResult};
 use vofront::geometry::{Camera, Lens};
-use vofront::odometry::direct::{DirectTracker, DirectTrackerConfig};
-use vofront::odometry::feature_rgbd::{FeatureRgbdConfig, FeatureRgbdTracker};
 use vofront::odometry::graph::G2oSink;
-use vofront::odometry::mono::{MonoConfig, MonoTracker};
+use vofront::odometry::registry::{Evaluation, Session, TrackerOptions};
 use vofront::odometry::run::{
-    run as run_tracker, run_with, FrameRecord, MetricsCsvSink, RunControl, RunOutput, RunSummary,
-    TumSink,
+    run as run_tracker, FrameRecord, MetricsCsvSink, RunControl, RunOutput, RunSummary, TumSink,
 };
 use vofront::odometry::Tracker;
 
-use crate::args::{OdometryArgs, OdometryMethod};
+use crate::args::OdometryArgs;
 
 /// Exit code when tracking was lost for good (partial results are still written).
 pub const EXIT_LOST: u8 = 3;
@@ -36,23 +33,6 @@ pub const EXIT_LOST: u8 = 3;
 pub const EXIT_SIGINT: u8 = 130;
 /// Exit code after SIGTERM (128 + 15).
 pub const EXIT_SIGTERM: u8 = 143;
-
-/// The camera and where it came from: explicit flags first, then the camera the dataset names
-/// ([`Dataset::camera`]: KITTI `calib.txt`, EuRoC `sensor.yaml`, a TUM folder name or list
-/// header), then the ROS default (`tum-ros`).
-fn choose_camera(args: &OdometryArgs, dataset: &Dataset) -> Result<(Camera, String), String> {
-    if args.camera.is_given() {
-        return Ok((args.camera.camera()?, "command-line flags".into()));
-    }
-    if let Some(camera) = dataset.camera {
-        let source = dataset
-            .camera_source
-            .as_ref()
-            .map_or_else(|| "dataset calibration".into(), |s| s.to_string());
-        return Ok((camera, source));
-    }
-    Ok((args.camera.camera()?, "default: tum-ros".into()))
-}
 
 /// One line describing `camera`.
 fn describe_camera(camera: &Camera) -> String {
@@ -71,29 +51,6 @@ fn describe_camera(camera: &Camera) -> String {
         d.model_name(),
         values.join(",")
     )
-}
-
-/// The tracker a method names; `features` overrides the ORB budget of the feature trackers.
-pub fn make_tracker(
-    method: OdometryMethod,
-    camera: Camera,
-    features: Option<usize>,
-) -> Result<Box<dyn Tracker>, String> {
-    Ok(match method {
-        OdometryMethod::Direct => {
-            Box::new(DirectTracker::new(camera, DirectTrackerConfig::default()))
-        }
-        OdometryMethod::FeatureRgbd => {
-            let mut cfg = FeatureRgbdConfig::default();
-            cfg.orb.n_features = features.unwrap_or(cfg.orb.n_features);
-            Box::new(FeatureRgbdTracker::new(camera, cfg).map_err(|e| e.to_string())?)
-        }
-        OdometryMethod::Mono => {
-            let mut cfg = MonoConfig::default();
-            cfg.orb.n_features = features.unwrap_or(cfg.orb.n_features);
-            Box::new(MonoTracker::new(camera, cfg).map_err(|e| e.to_string())?)
-        }
-    })
 }
 
 /// A progress bar over `total` frames on stderr, when stderr is a terminal.
@@ -123,50 +80,23 @@ pub fn track(dataset: &Dataset, tracker: &mut dyn Tracker, max_frames: Option<us
     out
 }
 
-/// The alignment a method's trajectory is evaluated with: monocular scale is arbitrary.
-pub fn alignment_for(method: OdometryMethod) -> Alignment {
-    if method == OdometryMethod::Mono {
-        Alignment::Sim3
-    } else {
-        Alignment::Se3
-    }
-}
-
 /// ATE and RPE of a run against the dataset's camera ground truth (EuRoC body poses turned
 /// into camera poses); `None` without ground truth or without any frame.
-fn evaluate(
-    dataset: &Dataset,
-    out: &RunOutput,
-    alignment: Alignment,
-) -> Option<(Result<AteResult, String>, Result<RpeResult, String>)> {
-    let gt = dataset.camera_ground_truth()?;
+fn evaluate(session: &Session, out: &RunOutput) -> Option<Evaluation> {
     if out.summary.frames == 0 {
         return None;
     }
-    let cfg = EvalConfig {
-        alignment,
-        max_dt: dataset.ground_truth_tolerance,
-    };
-    let rpe_cfg = cfg.for_rpe();
-    Some((
-        ate(&gt, &out.trajectory, &cfg).map_err(|e| e.to_string()),
-        rpe(&gt, &out.trajectory, &rpe_cfg).map_err(|e| e.to_string()),
-    ))
+    session.evaluate(&out.trajectory)
 }
 
 /// Writes the plot of the aligned trajectory against the ground truth.
-fn plot(dataset: &Dataset, a: &AteResult, path: &Path) -> Result<(), String> {
-    let gt = dataset.camera_ground_truth().unwrap_or_default();
-    write_plot(path, &gt, &a.aligned, &a.errors).map_err(|e| format!("{}: {e}", path.display()))
+fn plot(evaluation: &Evaluation, a: &AteResult, path: &Path) -> Result<(), String> {
+    write_plot(path, &evaluation.ground_truth, &a.aligned, &a.errors)
+        .map_err(|e| format!("{}: {e}", path.display()))
 }
 
 /// Prints the summary lines and, with ground truth, ATE and RPE; writes the plot if asked.
-pub fn report(
-    dataset: &Dataset,
-    out: &RunOutput,
-    alignment: Alignment,
-    plot_path: Option<&Path>,
-) -> Result<(), String> {
+pub fn report(session: &Session, out: &RunOutput, plot_path: Option<&Path>) -> Result<(), String> {
     let s = &out.summary;
     match s.frames_per_second() {
         _ if s.frames == 0 => outln!("frames 0: nothing was tracked"),
@@ -176,26 +106,27 @@ pub fn report(
             s.frames, out.trajectory.len(), s.unreliable, s.lost, s.reinitialised, s.unreadable, s.keyframes, s.mean_ms
         ),
     }
-    let Some((ate, rpe)) = evaluate(dataset, out, alignment) else {
+    let Some(evaluation) = evaluate(session, out) else {
         if plot_path.is_some() {
             eprintln!("vofront: no ground truth (or no frame), no plot written");
         }
         return Ok(());
     };
-    match ate {
+    match &evaluation.ate {
         Ok(a) => {
             outln!(
-                "ATE rmse {:.4} m over {} poses ({alignment:?}-aligned)",
+                "ATE rmse {:.4} m over {} poses ({:?}-aligned)",
                 a.stats.rmse,
-                a.pairs.len()
+                a.pairs.len(),
+                evaluation.alignment
             );
             if let Some(path) = plot_path {
-                plot(dataset, &a, path)?;
+                plot(&evaluation, a, path)?;
             }
         }
         Err(e) => outln!("ATE not computed: {e}"),
     }
-    match rpe {
+    match &evaluation.rpe {
         Ok(r) => {
             outln!(
                 "RPE rmse {:.4} m, {:.3} deg per frame",
@@ -216,41 +147,36 @@ pub fn report(
 }
 
 /// The `--json` summary object (keys documented in the README); writes the plot if asked.
-fn report_json(
-    args: &OdometryArgs,
-    dataset: &Dataset,
-    (camera, source): (&Camera, &str),
-    out: &RunOutput,
-) -> Result<Value, String> {
+fn report_json(args: &OdometryArgs, session: &Session, out: &RunOutput) -> Result<Value, String> {
     let s = &out.summary;
-    let (k, d) = (camera.pinhole, camera.distortion);
+    let dataset = &session.dataset;
+    let (k, d) = (session.camera.pinhole, session.camera.distortion);
     let (mut ate_json, mut rpe_json) = (Value::Null, Value::Null);
-    if let Some((ate, rpe)) = evaluate(dataset, out, alignment_for(args.method)) {
-        ate_json = match ate {
+    if let Some(evaluation) = evaluate(session, out) {
+        ate_json = match &evaluation.ate {
             Ok(a) => {
                 if let Some(path) = &args.plot {
-                    plot(dataset, &a, path)?;
+                    plot(&evaluation, a, path)?;
                 }
                 let mut stats = json!(a.stats);
                 stats["pairs"] = json!(a.pairs.len());
-                stats["alignment"] =
-                    json!(format!("{:?}", alignment_for(args.method)).to_lowercase());
+                stats["alignment"] = json!(format!("{:?}", evaluation.alignment).to_lowercase());
                 stats
             }
-            Err(e) => json!({ "error": e }),
+            Err(e) => json!({ "error": e.to_string() }),
         };
-        rpe_json = match rpe {
+        rpe_json = match &evaluation.rpe {
             Ok(r) => {
                 json!({"translation": json!(r.translation), "rotation_deg": json!(r.rotation_deg),
                        "rotation_scale": json!(r.rotation_scale)})
             }
-            Err(e) => json!({ "error": e }),
+            Err(e) => json!({ "error": e.to_string() }),
         };
     }
     Ok(json!({
         "dataset": dataset.root.display().to_string(),
         "format": format!("{:?}", dataset.kind).to_lowercase(),
-        "camera": {"source": source, "fx": k.fx, "fy": k.fy, "cx": k.cx, "cy": k.cy,
+        "camera": {"source": session.camera_origin.to_string(), "fx": k.fx, "fy": k.fy, "cx": k.cx, "cy": k.cy,
                    "distortion": d.coefficients(), "distortion_model": d.model_name()},
         "method": args.method.name(),
         "frames": s.frames,
@@ -317,15 +243,16 @@ pub fn run(args: &OdometryArgs) -> Result<u8, String> {
         }
         dataset.depth_scale = Some(scale);
     }
-    let (camera, source) = choose_camera(args, &dataset)?;
-    if args.method != OdometryMethod::Mono && dataset.frames.iter().all(|f| f.depth.is_none()) {
-        return Err(format!(
-            "{}: the {} method needs depth, and this dataset has none",
-            args.dataset.display(),
-            args.method.name()
-        ));
-    }
-    let mut tracker = make_tracker(args.method, camera, args.features)?;
+    let given = if args.camera.is_given() {
+        Some((args.camera.camera()?, "command-line flags"))
+    } else {
+        None
+    };
+    let session = Session::new(dataset, args.method, given).map_err(|e| e.to_string())?;
+    let options = TrackerOptions {
+        features: args.features,
+    };
+    let mut tracker = session.tracker(&options).map_err(|e| e.to_string())?;
     let trajectory = TumSink::new(create_output(&args.out)?);
     let metrics = MetricsCsvSink::new(create_output(&args.metrics)?)
         .map_err(|e| format!("{}: cannot write: {e}", args.metrics.display()))?;
@@ -340,7 +267,11 @@ pub fn run(args: &OdometryArgs) -> Result<u8, String> {
         std::fs::remove_file(path).map_err(|e| format!("{}: {e}", path.display()))?;
     }
     if !args.json {
-        outln!("camera: {} ({source})", describe_camera(&camera));
+        outln!(
+            "camera: {} ({})",
+            describe_camera(&session.camera),
+            session.camera_origin
+        );
     }
     let (stop, signal_code) = install_signal_handlers()?;
     let control = RunControl {
@@ -349,7 +280,7 @@ pub fn run(args: &OdometryArgs) -> Result<u8, String> {
     };
     let total = args
         .max_frames
-        .map_or(dataset.len(), |m| m.min(dataset.len()));
+        .map_or(session.dataset.len(), |m| m.min(session.dataset.len()));
     let bar = progress_bar(total);
     let progress = |r: &FrameRecord| {
         if let Some(bar) = &bar {
@@ -358,20 +289,15 @@ pub fn run(args: &OdometryArgs) -> Result<u8, String> {
         Ok(())
     };
     let mut sink = (trajectory, (metrics, (graph, progress)));
-    let out = run_with(&dataset, tracker.as_mut(), &control, &mut sink);
+    let out = session.run(tracker.as_mut(), &control, &mut sink);
     if let Some(bar) = &bar {
         bar.finish_and_clear();
     }
     let out = out.map_err(|e| e.to_string())?;
     if args.json {
-        outln!("{}", report_json(args, &dataset, (&camera, &source), &out)?);
+        outln!("{}", report_json(args, &session, &out)?);
     } else {
-        report(
-            &dataset,
-            &out,
-            alignment_for(args.method),
-            args.plot.as_deref(),
-        )?;
+        report(&session, &out, args.plot.as_deref())?;
     }
     if out.summary.interrupted {
         eprintln!(

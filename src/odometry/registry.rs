@@ -1,0 +1,408 @@
+//! The tracker registry and the wiring shared by the application front-ends (`vofront
+//! odometry`, Python's `Odometry` and `run_odometry`): which trackers exist and what they need
+//! ([`TrackerKind`]), which camera a dataset is tracked with ([`choose_camera`]), the depth
+//! check, the run, and the evaluation against the camera ground truth ([`Session`]).
+//!
+//! Adding a tracker is one [`TrackerKind`] variant (its arms in the `match`es below) and its
+//! module; every front-end then offers it under its [`TrackerKind::name`].
+//!
+//! ```
+//! use vofront::dataset::Dataset;
+//! use vofront::odometry::registry::{Session, TrackerKind, TrackerOptions};
+//! use vofront::odometry::run::{FrameRecord, RunControl};
+//! use vofront_fixtures::scene::{default_camera, room_trajectory, Scene};
+//! use vofront_fixtures::tum::write_tum_sequence;
+//!
+//! let dir = std::env::temp_dir().join(format!("vofront-doc-registry-{}", std::process::id()));
+//! let poses = room_trajectory(6);
+//! write_tum_sequence(&dir, &Scene::box_room(2), &default_camera(), (640, 480), &poses).unwrap();
+//! let kind: TrackerKind = "direct".parse().unwrap();
+//! let session = Session::new(Dataset::open(&dir).unwrap(), kind, None).unwrap();
+//! assert_eq!(session.camera_origin.to_string(), "default: tum-ros");
+//! let mut tracker = session.tracker(&TrackerOptions::default()).unwrap();
+//! let mut sink = |_: &FrameRecord| Ok::<(), std::io::Error>(());
+//! let out = session.run(tracker.as_mut(), &RunControl::default(), &mut sink).unwrap();
+//! let evaluation = session.evaluate(&out.trajectory).unwrap(); // TUM: ground truth present
+//! assert!(evaluation.ate.unwrap().stats.rmse < 0.005); // metres, SE(3)-aligned
+//! std::fs::remove_dir_all(&dir).unwrap();
+//! ```
+
+use std::fmt;
+use std::path::PathBuf;
+use std::str::FromStr;
+
+use thiserror::Error;
+use vofront_features::FeatureError;
+use vofront_geometry::camera::Pinhole;
+use vofront_geometry::Camera;
+
+use super::direct::{DirectTracker, DirectTrackerConfig};
+use super::feature_rgbd::{FeatureRgbdConfig, FeatureRgbdTracker};
+use super::mono::{MonoConfig, MonoTracker};
+use super::run::{run_with, FrameSink, RunControl, RunError, RunOutput};
+use super::Tracker;
+use crate::dataset::{CameraSource, Dataset};
+use crate::eval::{ate, rpe, Alignment, AteResult, EvalConfig, EvalError, RpeResult};
+use crate::trajectory::Trajectory;
+
+/// The library's sequence trackers, by the name every front-end uses (`vofront odometry
+/// --method NAME`, Python `Odometry(NAME, K)`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub enum TrackerKind {
+    /// `direct`: RGB-D photometric SE(3) alignment to keyframes
+    /// ([`super::direct::DirectTracker`]).
+    Direct,
+    /// `feature-rgbd`: ORB matched to keyframes with depth, PnP RANSAC and robust refinement
+    /// ([`super::feature_rgbd::FeatureRgbdTracker`]).
+    FeatureRgbd,
+    /// `mono` (alias `feature`): monocular ORB, two-view initialisation, triangulated points,
+    /// PnP; the trajectory's scale is arbitrary ([`super::mono::MonoTracker`]).
+    Mono,
+}
+
+/// Options a front-end may set on any tracker; `None` keeps the tracker's default.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub struct TrackerOptions {
+    /// ORB feature budget per frame of the feature trackers (ignored by `direct`).
+    pub features: Option<usize>,
+}
+
+impl TrackerKind {
+    /// Every tracker, in the order front-ends list them.
+    pub const ALL: &'static [TrackerKind] = &[Self::Direct, Self::FeatureRgbd, Self::Mono];
+
+    /// The name front-ends use (`--method NAME`, JSON `method`).
+    pub fn name(self) -> &'static str {
+        match self {
+            Self::Direct => "direct",
+            Self::FeatureRgbd => "feature-rgbd",
+            Self::Mono => "mono",
+        }
+    }
+
+    /// Other spellings accepted by [`TrackerKind::from_str`] (`feature` is the former name of
+    /// `mono`).
+    pub fn aliases(self) -> &'static [&'static str] {
+        match self {
+            Self::Direct => &[],
+            Self::FeatureRgbd => &["feature_rgbd"],
+            Self::Mono => &["feature"],
+        }
+    }
+
+    /// One line saying what the tracker does and needs.
+    pub fn description(self) -> &'static str {
+        match self {
+            Self::Direct => "RGB-D photometric SE(3) alignment to keyframes",
+            Self::FeatureRgbd => {
+                "RGB-D: ORB matched to keyframes with depth, PnP RANSAC and robust refinement"
+            }
+            Self::Mono => {
+                "Monocular ORB: two-view initialisation, triangulated points, PnP; arbitrary \
+                 scale (alias: feature)"
+            }
+        }
+    }
+
+    /// True when every frame must carry a depth map.
+    pub fn needs_depth(self) -> bool {
+        match self {
+            Self::Direct | Self::FeatureRgbd => true,
+            Self::Mono => false,
+        }
+    }
+
+    /// The alignment its trajectory is evaluated with: Sim(3) when the scale is unobservable
+    /// (monocular), SE(3) otherwise.
+    pub fn alignment(self) -> Alignment {
+        match self {
+            Self::Direct | Self::FeatureRgbd => Alignment::Se3,
+            Self::Mono => Alignment::Sim3,
+        }
+    }
+
+    /// A tracker of this kind for frames of `camera`, its default configuration with
+    /// `options` applied.
+    pub fn build(
+        self,
+        camera: Camera,
+        options: &TrackerOptions,
+    ) -> Result<Box<dyn Tracker + Send>, OdometryError> {
+        Ok(match self {
+            Self::Direct => Box::new(DirectTracker::new(camera, DirectTrackerConfig::default())),
+            Self::FeatureRgbd => {
+                let mut cfg = FeatureRgbdConfig::default();
+                cfg.orb.n_features = options.features.unwrap_or(cfg.orb.n_features);
+                Box::new(FeatureRgbdTracker::new(camera, cfg)?)
+            }
+            Self::Mono => {
+                let mut cfg = MonoConfig::default();
+                cfg.orb.n_features = options.features.unwrap_or(cfg.orb.n_features);
+                Box::new(MonoTracker::new(camera, cfg)?)
+            }
+        })
+    }
+
+    /// `name` as listed for an unknown one: every name, then the aliases.
+    fn known() -> String {
+        let names: Vec<&str> = Self::ALL.iter().map(|k| k.name()).collect();
+        let aliases: Vec<&str> = Self::ALL
+            .iter()
+            .flat_map(|k| k.aliases())
+            .copied()
+            .collect();
+        format!("{}; aliases {}", names.join(", "), aliases.join(", "))
+    }
+}
+
+impl fmt::Display for TrackerKind {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(self.name())
+    }
+}
+
+impl FromStr for TrackerKind {
+    type Err = OdometryError;
+
+    /// The tracker named `name` or one of its aliases (exact spelling).
+    fn from_str(name: &str) -> Result<Self, Self::Err> {
+        Self::ALL
+            .iter()
+            .copied()
+            .find(|k| k.name() == name || k.aliases().contains(&name))
+            .ok_or_else(|| OdometryError::UnknownTracker(name.to_string()))
+    }
+}
+
+/// `--method NAME` of the `vofront` program: the names, aliases and descriptions above.
+#[cfg(feature = "cli")]
+impl clap::ValueEnum for TrackerKind {
+    fn value_variants<'a>() -> &'a [Self] {
+        Self::ALL
+    }
+
+    fn to_possible_value(&self) -> Option<clap::builder::PossibleValue> {
+        Some(
+            clap::builder::PossibleValue::new(self.name())
+                .aliases(self.aliases().iter().copied())
+                .help(self.description()),
+        )
+    }
+}
+
+/// Errors of the registry and of a [`Session`].
+#[derive(Debug, Error)]
+pub enum OdometryError {
+    /// No tracker has this name or alias.
+    #[error("unknown tracker method '{0}' (known: {known})", known = TrackerKind::known())]
+    UnknownTracker(String),
+    /// The tracker's ORB configuration is invalid (e.g. a feature budget of 0).
+    #[error("invalid tracker configuration: {0}")]
+    Features(#[from] FeatureError),
+    /// The tracker needs depth and no frame of the dataset has any.
+    #[error("{}: the {kind} method needs depth, and this dataset has none", dataset.display())]
+    NoDepth {
+        /// The dataset folder.
+        dataset: PathBuf,
+        /// The tracker asked for.
+        kind: TrackerKind,
+    },
+    /// The run ended early: a sink refused a record.
+    #[error(transparent)]
+    Run(#[from] RunError),
+}
+
+/// The camera of the `tum-ros` preset (ROS default for a Kinect, 640x480):
+/// `fx = fy = 525`, `(cx, cy) = (319.5, 239.5)` pixels, no distortion.
+pub fn default_camera() -> Camera {
+    Camera::pinhole(Pinhole {
+        fx: 525.0,
+        fy: 525.0,
+        cx: 319.5,
+        cy: 239.5,
+    })
+}
+
+/// Where the camera of a [`Session`] came from; [`fmt::Display`] says so in one phrase.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub enum CameraOrigin {
+    /// Given by the caller; the text says how (e.g. `command-line flags`).
+    Given(String),
+    /// The dataset's own calibration ([`Dataset::camera`], from [`Dataset::camera_source`]).
+    Dataset(Option<CameraSource>),
+    /// Neither: [`default_camera`], the `tum-ros` preset.
+    Default,
+}
+
+impl fmt::Display for CameraOrigin {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            Self::Given(how) => f.write_str(how),
+            Self::Dataset(Some(source)) => source.fmt(f),
+            Self::Dataset(None) => f.write_str("dataset calibration"),
+            Self::Default => f.write_str("default: tum-ros"),
+        }
+    }
+}
+
+/// The camera to track `dataset` with: `given` (a camera and how it was given) first, then
+/// the camera the dataset names (KITTI `calib.txt`, EuRoC `sensor.yaml`, a TUM folder name or
+/// list header), then [`default_camera`].
+pub fn choose_camera(given: Option<(Camera, &str)>, dataset: &Dataset) -> (Camera, CameraOrigin) {
+    match (given, dataset.camera) {
+        (Some((camera, how)), _) => (camera, CameraOrigin::Given(how.to_string())),
+        (None, Some(camera)) => (camera, CameraOrigin::Dataset(dataset.camera_source.clone())),
+        (None, None) => (default_camera(), CameraOrigin::Default),
+    }
+}
+
+/// A dataset, the tracker kind chosen for it and the camera it is tracked with: what a
+/// front-end needs to run a sequence and evaluate it the same way as every other front-end.
+#[derive(Debug, Clone)]
+pub struct Session {
+    /// The sequence.
+    pub dataset: Dataset,
+    /// The tracker kind.
+    pub kind: TrackerKind,
+    /// The camera the frames are tracked with.
+    pub camera: Camera,
+    /// Where [`Session::camera`] came from.
+    pub camera_origin: CameraOrigin,
+}
+
+/// ATE and RPE of a trajectory against the camera ground truth.
+#[derive(Debug)]
+pub struct Evaluation {
+    /// The ground truth as camera poses `T_wc` ([`Dataset::camera_ground_truth`]: EuRoC body
+    /// poses times `T_BS`).
+    pub ground_truth: Trajectory,
+    /// The alignment used, [`TrackerKind::alignment`].
+    pub alignment: Alignment,
+    /// Absolute trajectory error (metres), `alignment`-aligned.
+    pub ate: Result<AteResult, EvalError>,
+    /// Relative pose error between consecutive poses (metres, degrees), with the alignment of
+    /// [`EvalConfig::for_rpe`].
+    pub rpe: Result<RpeResult, EvalError>,
+}
+
+impl Session {
+    /// The session of `kind` on `dataset`, the camera chosen by [`choose_camera`]; fails with
+    /// [`OdometryError::NoDepth`] when `kind` needs depth and no frame has any.
+    pub fn new(
+        dataset: Dataset,
+        kind: TrackerKind,
+        given: Option<(Camera, &str)>,
+    ) -> Result<Self, OdometryError> {
+        if kind.needs_depth() && dataset.frames.iter().all(|f| f.depth.is_none()) {
+            return Err(OdometryError::NoDepth {
+                dataset: dataset.root.clone(),
+                kind,
+            });
+        }
+        let (camera, camera_origin) = choose_camera(given, &dataset);
+        Ok(Self {
+            dataset,
+            kind,
+            camera,
+            camera_origin,
+        })
+    }
+
+    /// A fresh tracker of the session's kind and camera.
+    pub fn tracker(
+        &self,
+        options: &TrackerOptions,
+    ) -> Result<Box<dyn Tracker + Send>, OdometryError> {
+        self.kind.build(self.camera, options)
+    }
+
+    /// Tracks the dataset with `tracker` ([`run_with`]: bounded by `control`, every record
+    /// handed to `sink` as it finishes).
+    pub fn run(
+        &self,
+        tracker: &mut dyn Tracker,
+        control: &RunControl<'_>,
+        sink: &mut dyn FrameSink,
+    ) -> Result<RunOutput, OdometryError> {
+        Ok(run_with(&self.dataset, tracker, control, sink)?)
+    }
+
+    /// ATE and RPE of `trajectory` against the camera ground truth, associated within the
+    /// dataset's [`Dataset::ground_truth_tolerance`] and aligned by [`TrackerKind::alignment`];
+    /// `None` when the dataset has no ground truth.
+    pub fn evaluate(&self, trajectory: &Trajectory) -> Option<Evaluation> {
+        let ground_truth = self.dataset.camera_ground_truth()?;
+        let alignment = self.kind.alignment();
+        let cfg = EvalConfig {
+            alignment,
+            max_dt: self.dataset.ground_truth_tolerance,
+        };
+        Some(Evaluation {
+            ate: ate(&ground_truth, trajectory, &cfg),
+            rpe: rpe(&ground_truth, trajectory, &cfg.for_rpe()),
+            ground_truth,
+            alignment,
+        })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn names_and_aliases_parse_to_their_kind() {
+        for (name, kind) in [
+            ("direct", TrackerKind::Direct),
+            ("feature-rgbd", TrackerKind::FeatureRgbd),
+            ("feature_rgbd", TrackerKind::FeatureRgbd),
+            ("mono", TrackerKind::Mono),
+            ("feature", TrackerKind::Mono),
+        ] {
+            assert_eq!(name.parse::<TrackerKind>().unwrap(), kind, "{name}");
+        }
+        for kind in TrackerKind::ALL {
+            assert_eq!(kind.name().parse::<TrackerKind>().unwrap(), *kind);
+            assert_eq!(kind.to_string(), kind.name());
+        }
+        let err = "sideways".parse::<TrackerKind>().unwrap_err().to_string();
+        assert_eq!(
+            err,
+            "unknown tracker method 'sideways' (known: direct, feature-rgbd, mono; aliases \
+             feature_rgbd, feature)"
+        );
+    }
+
+    #[test]
+    fn only_mono_runs_without_depth_and_is_similarity_aligned() {
+        let mono: Vec<_> = TrackerKind::ALL
+            .iter()
+            .filter(|k| !k.needs_depth())
+            .collect();
+        assert_eq!(mono, [&TrackerKind::Mono]);
+        for kind in TrackerKind::ALL {
+            let want = if kind.needs_depth() {
+                Alignment::Se3
+            } else {
+                Alignment::Sim3
+            };
+            assert_eq!(kind.alignment(), want, "{kind}");
+        }
+    }
+
+    #[test]
+    fn every_kind_builds_with_the_default_camera_and_any_budget() {
+        for kind in TrackerKind::ALL {
+            for features in [None, Some(300)] {
+                let built = kind.build(default_camera(), &TrackerOptions { features });
+                assert!(built.is_ok(), "{kind} {features:?}");
+            }
+        }
+    }
+
+    #[test]
+    fn the_default_camera_is_the_tum_ros_preset() {
+        let preset = crate::presets::camera_preset("tum-ros").map(|p| p.camera);
+        assert_eq!(Some(default_camera()), preset);
+    }
+}
