@@ -12,7 +12,7 @@ use vofront::fixtures::tum::write_tum_sequence;
 use vofront::geometry::lie::{direction_angle_deg, rotation_angle_deg};
 use vofront::pipeline::gray_plane;
 
-use vofront::report::two_view::Method;
+use vofront::two_view::Method;
 
 use crate::args::OdometryMethod;
 use crate::odometry_cmd::{alignment_for, make_tracker, report, track};
