@@ -6,6 +6,10 @@
 //! - Direct alignment lives in [`crate::direct`]: `align_translation(&Plane, &Plane, &cfg)` and
 //!   `align_se3(&RgbdFrame, &Plane, &prior, &cfg)`; [`gray_plane`] and [`depth_plane`] convert
 //!   the `image` crate's buffers into its `Plane`.
+//! - Running the feature and direct estimators on one pair, each failing on its own, with a
+//!   recommendation: [`crate::two_view::estimate`].
+//!
+//! [`VoError`] lives in [`crate::error`] (re-exported here for the old path).
 
 use std::time::Instant;
 
