@@ -10,8 +10,8 @@ use nalgebra::{Isometry3, Matrix3, Quaternion, Translation3, UnitQuaternion};
 use vofront::geometry::lie::direction_angle_deg;
 use vofront::input::{load_depth, load_gray};
 use vofront::presets::camera_preset;
-use vofront::report::two_view::{estimate, Inputs, Method};
 use vofront::robust::Quality;
+use vofront::two_view::{estimate, Inputs, Method};
 
 fn tum_pose(path: &Path) -> Option<Isometry3<f64>> {
     let text = std::fs::read_to_string(path).ok()?;
@@ -97,8 +97,8 @@ fn main() {
                 &truth,
             );
         }
-        if let (Some(Ok((s, _))), Some(q)) = (&o.se3, &o.se3_quality) {
-            line(case, "direct_se3", q, &s.pose, &truth);
+        if let Some(Ok((s, _))) = &o.se3 {
+            line(case, "direct_se3", &s.quality, &s.pose, &truth);
         }
     }
     for (clip, preset) in [("kitti_06", "kitti-04-12"), ("kitti_01", "kitti-00-02")] {

@@ -18,13 +18,16 @@
 
 pub mod dataset;
 pub mod draw;
+pub mod error;
 pub mod eval;
 pub mod input;
 pub mod odometry;
 pub mod pipeline;
 pub mod presets;
 pub mod report;
+pub mod timing;
 pub mod trajectory;
+pub mod two_view;
 
 pub use vofront_core as core;
 pub use vofront_direct as direct;

@@ -6,63 +6,21 @@
 //! - Direct alignment lives in [`crate::direct`]: `align_translation(&Plane, &Plane, &cfg)` and
 //!   `align_se3(&RgbdFrame, &Plane, &prior, &cfg)`; [`gray_plane`] and [`depth_plane`] convert
 //!   the `image` crate's buffers into its `Plane`.
+//! - Running the feature and direct estimators on one pair, each failing on its own, with a
+//!   recommendation: [`crate::two_view::estimate`].
+//!
+//! [`VoError`] lives in [`crate::error`] (re-exported here for the old path).
 
 use std::time::Instant;
 
 use image::GrayImage;
-use thiserror::Error;
-use vofront_direct::{DirectError, Plane};
-use vofront_features::{
-    match_descriptors, FeatureError, Features, Match, MatchConfig, Orb, OrbConfig,
-};
-use vofront_geometry::{
-    estimate_relative_pose, Camera, GeometryError, RelativePose, RelativePoseConfig,
-};
+use vofront_direct::Plane;
+use vofront_features::{match_descriptors, Features, Match, MatchConfig, Orb, OrbConfig};
+use vofront_geometry::{estimate_relative_pose, Camera, RelativePose, RelativePoseConfig};
 
+pub use crate::error::VoError;
 use crate::input::DepthMap;
-
-/// Anything the facade's pipelines and trackers can fail with.
-#[derive(Debug, Clone, PartialEq, Error)]
-pub enum VoError {
-    /// Feature detection or matching failed.
-    #[error("features: {0}")]
-    Features(#[from] FeatureError),
-    /// Geometry estimation failed (too few or degenerate correspondences).
-    #[error("geometry: {0}")]
-    Geometry(#[from] GeometryError),
-    /// Direct alignment failed.
-    #[error("direct: {0}")]
-    Direct(#[from] DirectError),
-    /// The frame has no depth map and the tracker needs one.
-    #[error("frame has no depth")]
-    NoDepth,
-    /// Too few of something (PnP inliers, features with depth) for the estimate to count.
-    #[error("{got} {what}, {need} needed")]
-    TooFew {
-        /// What was counted.
-        what: &'static str,
-        /// How many there were.
-        got: usize,
-        /// How many the tracker needs.
-        need: usize,
-    },
-    /// The direct alignment's inlier ratio is below the tracker's minimum.
-    #[error("inlier ratio {ratio:.2} below {min:.2}")]
-    LowInlierRatio {
-        /// Inliers over valid pixels.
-        ratio: f64,
-        /// The tracker's minimum.
-        min: f64,
-    },
-    /// The estimate exists but its quality verdict is `failed`.
-    #[error("{what} failed: {reasons}")]
-    Rejected {
-        /// Which estimate ("SE(3)", "PnP", ...).
-        what: &'static str,
-        /// The verdict's reasons, `;`-separated names.
-        reasons: String,
-    },
-}
+use crate::timing::ms_since;
 
 /// Wall-clock time of each stage of [`TwoViewEstimator::relative_pose`], milliseconds; the
 /// `ms` object of the `two-view` JSON (`matching` spelt `match` there).
@@ -119,20 +77,10 @@ pub struct TwoViewEstimator {
     pub geometry: RelativePoseConfig,
 }
 
-/// The former name of [`TwoViewEstimator`] (it estimates one pose from two views; it does not
-/// track a sequence).
-#[deprecated(note = "renamed `TwoViewEstimator` (the sequential trackers are `odometry::Tracker`)")]
-pub type FeatureTracker = TwoViewEstimator;
-
 /// Level-0 pixel of feature `i` (the `f32` detector coordinates widened to the `f64` of the
 /// geometry crate).
 pub(crate) fn feature_pixel(f: &Features, i: u32) -> nalgebra::Vector2<f64> {
     nalgebra::Vector2::new(f64::from(f.xs()[i as usize]), f64::from(f.ys()[i as usize]))
-}
-
-/// Milliseconds since `start`.
-pub(crate) fn ms_since(start: Instant) -> f64 {
-    start.elapsed().as_secs_f64() * 1e3
 }
 
 impl TwoViewEstimator {

@@ -9,8 +9,8 @@ use vofront::fixtures::image2d::{
 };
 use vofront::fixtures::scene::{default_camera, pose_wc, Scene};
 use vofront::geometry::Camera;
-use vofront::report::two_view::{estimate, Inputs, Method, Outcome, Status};
 use vofront::robust::{Reason, Verdict};
+use vofront::two_view::{estimate, Inputs, Method, Outcome, Status};
 
 /// Rotation error an `ok` feature pose may have on these noise-free renderings, degrees.
 const OK_ROTATION_DEG: f64 = 0.5;
@@ -35,7 +35,10 @@ fn feature_verdict(o: &Outcome) -> Option<Verdict> {
 }
 
 fn translation_verdict(o: &Outcome) -> Option<Verdict> {
-    o.translation_quality.as_ref().map(|q| q.verdict)
+    match &o.translation {
+        Some(Ok((d, _))) => Some(d.quality.verdict),
+        _ => None,
+    }
 }
 
 fn print(name: &str, o: &Outcome) {
@@ -74,7 +77,10 @@ fn good_room_pair_is_ok_and_recommends_the_metric_pose() {
     print("room", &o);
     assert_eq!(feature_verdict(&o), Some(Verdict::Ok));
     assert!(rotation_error_deg(&o, &truth) < OK_ROTATION_DEG);
-    assert_eq!(o.se3_quality.as_ref().map(|q| q.verdict), Some(Verdict::Ok));
+    assert!(
+        matches!(&o.se3, Some(Ok((s, _))) if s.quality.verdict == Verdict::Ok),
+        "direct SE(3) must be ok"
+    );
     assert_eq!(o.status(), Status::Ok);
     assert_eq!(o.recommend().estimate, Some("direct_se3"));
     let json = serde_json::to_value(o.report()).expect("serialises");

@@ -12,7 +12,8 @@ use std::time::Instant;
 
 use vofront::geometry::camera::{Camera, Pinhole};
 use vofront::input::{load_depth, load_gray};
-use vofront::report::two_view::{estimate, to_json, Inputs, Method};
+use vofront::report::two_view::to_json;
+use vofront::two_view::{estimate, Inputs, Method};
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {
     let args: Vec<String> = std::env::args().collect();

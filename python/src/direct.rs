@@ -7,19 +7,15 @@ use numpy::PyArray1;
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
 use vofront::direct::{
-    align_se3 as se3, align_translation as translation, track_klt, KltConfig, RgbdFrame, Se3Config,
-    TrackStatus, TranslationConfig,
+    align_se3 as se3, align_translation as translation, track_klt, KltConfig, KltStatus, RgbdFrame,
+    Se3Config, TranslationConfig,
 };
+use vofront::timing::ms_since;
 
 use crate::convert::{
     array2, bad, camera, depth_plane, plane, points, pose, pose_matrix, Arr1, Arr2,
 };
 use crate::errors::{failed, release};
-
-/// Milliseconds since `start`.
-pub fn ms_since(start: Instant) -> f64 {
-    start.elapsed().as_secs_f64() * 1e3
-}
 
 /// The `d` that moves the content of `img1` onto `img2`: `img2(x + d) = img1(x)`, pixels.
 ///
@@ -210,7 +206,7 @@ pub fn klt<'py>(
         .collect();
     let status: Vec<u8> = tracks
         .iter()
-        .map(|t| u8::from(t.status == TrackStatus::Tracked))
+        .map(|t| u8::from(t.status == KltStatus::Tracked))
         .collect();
     let error: Vec<f32> = tracks.iter().map(|t| t.error).collect();
     Ok((

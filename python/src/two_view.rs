@@ -6,10 +6,12 @@ use numpy::PyArray1;
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
 use vofront::geometry::{estimate_relative_pose, RelativePoseConfig};
-use vofront::report::two_view::{estimate, model_name, to_json, Inputs, Method};
+use vofront::report::two_view::{model_name, to_json};
+use vofront::timing::ms_since;
+use vofront::two_view::{estimate, Inputs, Method, UnknownMethod};
 
 use crate::convert::{bad, camera, depth, gray8, json_to_py, points, pose_matrix};
-use crate::direct::{ms_since, rotation_translation};
+use crate::direct::rotation_translation;
 use crate::errors::{failed, release};
 
 /// Robust relative pose `T_21` (`x2 = R x1 + t`, unit `t`) from pixel correspondences
@@ -61,18 +63,6 @@ pub fn relpose<'py>(
     Ok(out)
 }
 
-/// Which estimators `two_view` runs (`vofront two-view --method`).
-fn parse_method(method: &str) -> PyResult<Method> {
-    match method {
-        "all" => Ok(Method::All),
-        "feature" => Ok(Method::Feature),
-        "direct" => Ok(Method::Direct),
-        _ => Err(bad(format!(
-            "method must be 'feature', 'direct' or 'all', got '{method}'"
-        ))),
-    }
-}
-
 /// Feature pose, direct 2D shift and (with `depth1`) direct SE(3) pose of one pair, computed
 /// and reported by the library exactly as `vofront two-view --json` does (same keys; a failed
 /// method gives `{"error": message}`), each pose also as a 4x4 `T_21` array.
@@ -91,7 +81,9 @@ pub fn two_view<'py>(
     depth_scale: f64,
     features: usize,
 ) -> PyResult<Bound<'py, PyDict>> {
-    let method = parse_method(method)?;
+    let method: Method = method
+        .parse()
+        .map_err(|e: UnknownMethod| bad(e.to_string()))?;
     let depth1 = match depth1.filter(|d| !d.is_none()) {
         Some(d) => Some(depth(d, depth_scale, "depth1")?),
         None => None,

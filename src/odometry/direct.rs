@@ -12,7 +12,6 @@ use std::sync::Arc;
 use std::time::Instant;
 
 use nalgebra::Isometry3;
-use vofront_direct::quality::intensity_variance;
 use vofront_direct::{DirectError, Plane, RgbdFrame, Se3Config, Se3Reference, Undistorter};
 use vofront_geometry::Camera;
 use vofront_robust::{QualityConfig, Verdict};
@@ -20,7 +19,7 @@ use vofront_robust::{QualityConfig, Verdict};
 use super::keyframe::{KeyframePolicy, KeyframeView};
 use super::{ms_since, FrameEstimate, FrameQuality, KeyframeSlot, TrackStatus, Tracker};
 use crate::dataset::Frame;
-use crate::pipeline::VoError;
+use crate::error::VoError;
 
 /// Settings of [`DirectTracker`].
 #[derive(Debug, Clone)]
@@ -31,7 +30,8 @@ pub struct DirectTrackerConfig {
     pub keyframe: KeyframePolicy,
     /// Smallest inlier ratio for a frame to count as tracked.
     pub min_inlier_ratio: f64,
-    /// Minimum support of an `ok` alignment ([`vofront_direct::Se3Result::quality`]).
+    /// Thresholds of the alignment's verdict ([`vofront_direct::Se3Result::quality`]), used in
+    /// place of `se3.quality`.
     pub quality: QualityConfig,
 }
 
@@ -51,8 +51,6 @@ struct Keyframe {
     t_wc: Isometry3<f64>,
     median_depth: f64,
     selected: usize,
-    /// `var(I_kf)`, grey levels^2, for the chance test.
-    variance: f64,
     first_residual: Option<f64>,
 }
 
@@ -135,7 +133,6 @@ impl DirectTracker {
             t_wc,
             median_depth: median_depth(rgbd.depth()),
             selected,
-            variance: intensity_variance(rgbd.image()),
             first_residual: None,
         })
     }
@@ -175,13 +172,19 @@ impl Tracker for DirectTracker {
                 .restart(made, predicted, "no keyframe".into(), start);
         };
         let prior = predicted.inverse() * kf.t_wc;
-        let variances = kf.variance + intensity_variance(&current);
         let fit = kf
             .reference
-            .align(&current, &prior, &self.cfg.se3)
+            .align(
+                &current,
+                &prior,
+                &Se3Config {
+                    quality: self.cfg.quality,
+                    ..self.cfg.se3
+                },
+            )
             .map_err(VoError::from)
             .and_then(|r| {
-                let q = r.quality(kf.selected, variances, &self.cfg.quality);
+                let q = r.quality.clone();
                 if q.verdict == Verdict::Failed {
                     Err(VoError::Rejected {
                         what: "SE(3)",

@@ -23,7 +23,7 @@ use super::{
     TrackStatus, Tracker,
 };
 use crate::dataset::Frame;
-use crate::pipeline::VoError;
+use crate::error::VoError;
 
 /// Settings of [`FeatureRgbdTracker`].
 #[derive(Debug, Clone)]

@@ -34,6 +34,7 @@ pub mod mono;
 pub mod motion;
 pub mod registry;
 pub mod run;
+pub mod sink;
 
 use std::time::Instant;
 
@@ -166,8 +167,8 @@ pub trait Tracker {
     }
 }
 
-use crate::pipeline::VoError;
-pub(crate) use crate::pipeline::{feature_pixel, ms_since};
+use crate::error::VoError;
+pub(crate) use crate::{pipeline::feature_pixel, timing::ms_since};
 
 /// What every keyframe tracker keeps between frames: its keyframe `K`, the constant-velocity
 /// prior, and whether tracking has started (so a restart can be told from the first frame).

@@ -6,8 +6,9 @@
 //! pipeline's [`crate::pipeline::FeatureTimings`]. The raw results themselves
 //! (`RelativePose`, `Se3Result`, `FrameEstimate`, ...) derive `Serialize` as well.
 //!
-//! - [`two_view`]: feature and direct estimates of one frame pair ([`two_view::estimate`],
-//!   [`two_view::TwoViewReport`], the `two-view` command's JSON).
+//! - [`two_view`]: the report of one frame pair's feature and direct estimates
+//!   ([`two_view::TwoViewReport`], the `two-view` command's JSON) from the
+//!   [`crate::two_view::Outcome`] of [`crate::two_view::estimate`].
 
 pub mod two_view;
 
@@ -41,11 +42,13 @@ pub enum Entry<T> {
 }
 
 impl<T> Entry<T> {
-    /// The report of `r`, built by `f`, or the error's message.
-    pub fn of<V>(r: &Result<V, String>, f: impl FnOnce(&V) -> T) -> Self {
+    /// The report of `r`, built by `f`, or the error's message (its `Display`).
+    pub fn of<V, E: std::fmt::Display>(r: &Result<V, E>, f: impl FnOnce(&V) -> T) -> Self {
         match r {
             Ok(v) => Entry::Ok(f(v)),
-            Err(e) => Entry::Failed { error: e.clone() },
+            Err(e) => Entry::Failed {
+                error: e.to_string(),
+            },
         }
     }
 }

@@ -11,7 +11,7 @@
 use std::io::Write;
 use std::time::Instant;
 
-use vofront_direct::{good_features_to_track, track_klt, KltConfig, Plane, TrackStatus};
+use vofront_direct::{good_features_to_track, track_klt, KltConfig, KltStatus, Plane};
 
 fn median_ms<T>(reps: usize, mut f: impl FnMut() -> T) -> (f64, T) {
     let mut times = Vec::new();
@@ -50,9 +50,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     });
     let fb_tracks = fb_tracks?;
     let ok = |t: &[vofront_direct::KltTrack]| {
-        t.iter()
-            .filter(|t| t.status == TrackStatus::Tracked)
-            .count()
+        t.iter().filter(|t| t.status == KltStatus::Tracked).count()
     };
     println!(
         "{{\"detect_ms\": {detect_ms:.3}, \"track_ms\": {track_ms:.3}, \"track_fb_ms\": {fb_ms:.3}, \"points\": {}, \"tracked\": {}, \"tracked_fb\": {}}}",
@@ -63,7 +61,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     if let Some(path) = args.get(5) {
         let mut f = std::fs::File::create(path)?;
         for (p, t) in corners.iter().zip(&tracks) {
-            let status = u8::from(t.status == TrackStatus::Tracked);
+            let status = u8::from(t.status == KltStatus::Tracked);
             writeln!(
                 f,
                 "{},{},{},{},{status}",

@@ -52,7 +52,9 @@ pub use se3::{
     align_se3, photometric_residual_map, InverseDepthPoint, Se3Config, Se3Reference, Se3Result,
 };
 pub use translation::{align_translation, TranslationConfig, TranslationResult};
-pub use vofront_image::{good_features_to_track, track_klt, KltConfig, KltTrack, TrackStatus};
+#[allow(deprecated)]
+pub use vofront_image::TrackStatus;
+pub use vofront_image::{good_features_to_track, track_klt, KltConfig, KltStatus, KltTrack};
 pub use warp2d::{
     align_affine, align_homography, TranslationMethod, WarpConfig, WarpKind, WarpResult,
 };

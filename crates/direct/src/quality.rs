@@ -1,4 +1,7 @@
-//! The quality record ([`vofront_robust::Quality`]) of each direct estimate.
+//! The quality record ([`vofront_robust::Quality`]) of each direct estimate, computed by the
+//! aligner itself with the `quality` thresholds of its configuration and returned in the
+//! result's `quality` field ([`crate::TranslationResult::quality`],
+//! [`crate::WarpResult::quality`], [`crate::Se3Result::quality`]).
 //!
 //! A photometric fit is better than chance when it explains the images: for a 2D shift, the
 //! mean squared difference at the shift must stay under [`CHANCE_RESIDUAL_SHARE`] of its value
@@ -7,15 +10,14 @@
 //! of two unrelated images with the same statistics). Under [`FIT_RESIDUAL_SHARE`] the fit
 //! explains the pair; between the two it is [`Reason::HighResidual`]. Support is the number of valid pixels;
 //! the covariance is the aligner's Gauss-Newton `sigma^2 H^-1` for the 2D warps and the M-estimator's
-//! sandwich `B^-1 M B^-1` for SE(3) (see `Se3Result::covariance`).
+//! sandwich `B^-1 M B^-1` for SE(3) (see [`crate::Se3Result::covariance`]).
 
+use nalgebra::Matrix6;
 use vofront_robust::quality::{block_rows, rms_of};
 use vofront_robust::{Convergence, Quality, QualityConfig, Reason, Support, Uncertainty};
 
 use crate::plane::Plane;
-use crate::se3::Se3Result;
-use crate::translation::TranslationResult;
-use crate::warp2d::WarpResult;
+use crate::warp2d::{Fit2d, WarpResult};
 
 /// Share of `var(I1) + var(I2)` above which a photometric residual variance is what two
 /// unrelated images give ([`Reason::NotBetterThanChance`]).
@@ -119,88 +121,116 @@ fn share_flags(share: f64) -> Vec<Reason> {
     }
 }
 
-impl TranslationResult {
-    /// Quality of the 2D shift between `p1` and `p2`; the chance test is
-    /// [`shift_chance_share`] on the raw images; `sigma` is the RMS residual, grey levels.
-    pub fn quality(&self, p1: &Plane, p2: &Plane, cfg: &QualityConfig) -> Quality {
-        let (w, h) = p1.size();
-        let image_pixels = w * h;
-        let pixels = (self.used_fraction * image_pixels as f64).round() as usize;
-        let uncertainty = match &self.covariance {
-            Some(cov) => Uncertainty {
-                covariance: Some(block_rows(|r, c| cov[(r, c)], 0, 2)),
-                shift_sigma_px: Some((cov[(0, 0)] + cov[(1, 1)]).max(0.0).sqrt()),
-                ..Uncertainty::default()
-            },
-            None => Uncertainty::default(),
-        };
-        Quality::judge(
-            pixel_support(pixels, image_pixels),
-            self.rmse,
-            self.iterations.iter().sum(),
-            self.converged,
-            uncertainty,
-            &share_flags(shift_chance_share(p1, p2, (self.d.x, self.d.y))),
-            cfg,
-        )
-    }
-}
-
-impl WarpResult {
-    /// Quality of an affine or homography warp, as [`TranslationResult::quality`].
-    pub fn quality(&self, image_pixels: usize, variances: f64, cfg: &QualityConfig) -> Quality {
-        let pixels = (self.used_fraction * image_pixels as f64).round() as usize;
-        let uncertainty = Uncertainty {
-            covariance: self
-                .covariance
-                .as_ref()
-                .map(|cov| block_rows(|r, c| cov[(r, c)], 0, cov.nrows())),
+/// The verdict of a 2D shift `fit` of `p1` to `p2` ([`crate::align_translation`]): the chance
+/// test is [`shift_chance_share`] on the two images; `sigma` is the RMS residual, grey levels;
+/// the covariance that of `d`, pixels^2.
+pub(crate) fn shift_quality(fit: &Fit2d, p1: &Plane, p2: &Plane, cfg: &QualityConfig) -> Quality {
+    let (w, h) = p1.size();
+    let image_pixels = w * h;
+    let pixels = (fit.used_fraction * image_pixels as f64).round() as usize;
+    let uncertainty = match &fit.covariance {
+        Some(cov) => Uncertainty {
+            covariance: Some(block_rows(|r, c| cov[(r, c)], 0, 2)),
+            shift_sigma_px: Some((cov[(0, 0)] + cov[(1, 1)]).max(0.0).sqrt()),
             ..Uncertainty::default()
-        };
-        Quality::judge(
-            pixel_support(pixels, image_pixels),
-            self.rmse,
-            self.iterations.iter().sum(),
-            self.converged,
-            uncertainty,
-            &photometric_flags(self.rmse, variances),
-            cfg,
-        )
+        },
+        None => Uncertainty::default(),
+    };
+    let d = (fit.h[(0, 2)], fit.h[(1, 2)]);
+    Quality::judge(
+        pixel_support(pixels, image_pixels),
+        fit.rmse,
+        fit.iterations.iter().sum(),
+        fit.converged,
+        uncertainty,
+        &share_flags(shift_chance_share(p1, p2, d)),
+        cfg,
+    )
+}
+
+/// An affine or homography `fit` of `p1` to `p2` with its verdict: support out of the image's
+/// pixels, the chance test on `var(I1) + var(I2)`, the covariance of the geometric parameters.
+pub(crate) fn warp_quality(fit: Fit2d, p1: &Plane, p2: &Plane, cfg: &QualityConfig) -> WarpResult {
+    let (w, h) = p1.size();
+    let image_pixels = w * h;
+    let variances = intensity_variance(p1) + intensity_variance(p2);
+    let pixels = (fit.used_fraction * image_pixels as f64).round() as usize;
+    let uncertainty = Uncertainty {
+        covariance: fit
+            .covariance
+            .as_ref()
+            .map(|cov| block_rows(|r, c| cov[(r, c)], 0, cov.nrows())),
+        ..Uncertainty::default()
+    };
+    let quality = Quality::judge(
+        pixel_support(pixels, image_pixels),
+        fit.rmse,
+        fit.iterations.iter().sum(),
+        fit.converged,
+        uncertainty,
+        &photometric_flags(fit.rmse, variances),
+        cfg,
+    );
+    WarpResult {
+        h: fit.h,
+        a: fit.a,
+        b: fit.b,
+        iterations: fit.iterations,
+        rmse: fit.rmse,
+        used_fraction: fit.used_fraction,
+        covariance: fit.covariance,
+        converged: fit.converged,
+        quality,
     }
 }
 
-impl Se3Result {
-    /// Quality of an SE(3) alignment of a reference with `reference_pixels` usable pixels;
-    /// `variances` is `var(I_ref) + var(I_cur)`. Covariance of `(rho, phi)` (metres, radians);
-    /// `sigma` is the robust residual scale, grey levels.
-    pub fn quality(&self, reference_pixels: usize, variances: f64, cfg: &QualityConfig) -> Quality {
-        let uncertainty = match &self.covariance {
-            Some(cov) => Uncertainty {
-                translation_sigma_m: Some(rms_of(&block_rows(|r, c| cov[(r, c)], 0, 3), 1.0)),
-                rotation_sigma_deg: Some(rms_of(
-                    &block_rows(|r, c| cov[(r, c)], 3, 3),
-                    1f64.to_degrees(),
-                )),
-                covariance: Some(block_rows(|r, c| cov[(r, c)], 0, 6)),
-                ..Uncertainty::default()
-            },
-            None => Uncertainty::default(),
-        };
-        let support = Support {
-            pixels: Some(self.valid_pixels),
-            ..Support::new(
-                (self.inlier_ratio * self.valid_pixels as f64).round() as usize,
-                reference_pixels.max(self.valid_pixels),
-            )
-        };
-        Quality::judge(
-            support,
-            self.sigma,
-            self.iterations.iter().sum(),
-            self.reason != Convergence::MaxIterations,
-            uncertainty,
-            &photometric_flags(self.rmse, variances),
-            cfg,
+/// The full-resolution statistics of an SE(3) alignment that its verdict rests on (the fields
+/// of the same names in [`crate::Se3Result`]).
+pub(crate) struct Se3Stats<'a> {
+    pub covariance: Option<&'a Matrix6<f64>>,
+    pub valid_pixels: usize,
+    pub inlier_ratio: f64,
+    pub sigma: f64,
+    pub rmse: f64,
+    pub iterations: usize,
+    pub reason: Convergence,
+}
+
+/// The verdict of an SE(3) alignment against a reference of `reference_pixels` candidate
+/// pixels; `variances` is `var(I_ref) + var(I_cur)`. Covariance of `(rho, phi)` (metres,
+/// radians); `sigma` is the robust residual scale, grey levels.
+pub(crate) fn se3_quality(
+    s: &Se3Stats<'_>,
+    reference_pixels: usize,
+    variances: f64,
+    cfg: &QualityConfig,
+) -> Quality {
+    let uncertainty = match s.covariance {
+        Some(cov) => Uncertainty {
+            translation_sigma_m: Some(rms_of(&block_rows(|r, c| cov[(r, c)], 0, 3), 1.0)),
+            rotation_sigma_deg: Some(rms_of(
+                &block_rows(|r, c| cov[(r, c)], 3, 3),
+                1f64.to_degrees(),
+            )),
+            covariance: Some(block_rows(|r, c| cov[(r, c)], 0, 6)),
+            ..Uncertainty::default()
+        },
+        None => Uncertainty::default(),
+    };
+    let support = Support {
+        pixels: Some(s.valid_pixels),
+        ..Support::new(
+            (s.inlier_ratio * s.valid_pixels as f64).round() as usize,
+            reference_pixels.max(s.valid_pixels),
         )
-    }
+    };
+    Quality::judge(
+        support,
+        s.sigma,
+        s.iterations,
+        s.reason != Convergence::MaxIterations,
+        uncertainty,
+        &photometric_flags(s.rmse, variances),
+        cfg,
+    )
 }

@@ -9,10 +9,11 @@
 //! [`vofront_robust::SolveError::Degenerate`]; a flat image is [`DirectError::NoTexture`].
 
 use nalgebra::{Matrix2, Matrix3, Vector2};
-use vofront_robust::Loss;
+use vofront_robust::{Loss, Quality, QualityConfig};
 
 use crate::error::DirectError;
 use crate::plane::Plane;
+use crate::quality::shift_quality;
 use crate::warp2d::{align_2d, TranslationMethod, WarpConfig, WarpKind};
 
 /// Settings of [`align_translation`].
@@ -45,6 +46,8 @@ pub struct TranslationConfig {
     pub max_condition: f64,
     /// Blur both images by a sigma-1 binomial kernel first (see [`WarpConfig::presmooth`]).
     pub presmooth: bool,
+    /// Thresholds of the result's [`TranslationResult::quality`] verdict.
+    pub quality: QualityConfig,
 }
 
 impl Default for TranslationConfig {
@@ -61,6 +64,7 @@ impl Default for TranslationConfig {
             affine_brightness: false,
             max_condition: 1e4,
             presmooth: true,
+            quality: QualityConfig::default(),
         }
     }
 }
@@ -86,6 +90,10 @@ pub struct TranslationResult {
     pub b: f64,
     /// False when the full-resolution level hit its iteration limit.
     pub converged: bool,
+    /// Verdict, pixels used and covariance of `d`, judged with [`TranslationConfig::quality`];
+    /// the chance test is [`crate::quality::shift_chance_share`] on the two input images and
+    /// `sigma` the RMS residual, grey levels.
+    pub quality: Quality,
 }
 
 /// Finds `d` with `I2(x + d) = I1(x)` (the content of `img1` moved by `d` in `img2`).
@@ -121,9 +129,10 @@ pub fn align_translation(
         affine_brightness: cfg.affine_brightness,
         max_condition: cfg.max_condition,
         presmooth: cfg.presmooth,
+        quality: cfg.quality,
     };
     let forward = cfg.method == TranslationMethod::ForwardAdditive;
-    let out = align_2d::<4>(
+    let fit = align_2d::<4>(
         WarpKind::Translation,
         img1,
         img2,
@@ -131,16 +140,18 @@ pub fn align_translation(
         &warp_cfg,
         forward,
     )?;
+    let quality = shift_quality(&fit, img1, img2, &cfg.quality);
     Ok(TranslationResult {
-        d: Vector2::new(out.h[(0, 2)], out.h[(1, 2)]),
-        iterations: out.iterations,
-        rmse: out.rmse,
-        used_fraction: out.used_fraction,
-        covariance: out
+        d: Vector2::new(fit.h[(0, 2)], fit.h[(1, 2)]),
+        iterations: fit.iterations,
+        rmse: fit.rmse,
+        used_fraction: fit.used_fraction,
+        covariance: fit
             .covariance
             .map(|cov| Matrix2::from_fn(|r, c| cov[(r, c)])),
-        a: out.a,
-        b: out.b,
-        converged: out.converged,
+        a: fit.a,
+        b: fit.b,
+        converged: fit.converged,
+        quality,
     })
 }

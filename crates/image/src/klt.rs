@@ -71,9 +71,10 @@ impl Default for KltConfig {
     }
 }
 
-/// Outcome of one tracked point.
+/// Outcome of one KLT-tracked point (not the per-frame status of the sequential trackers,
+/// `vofront::odometry::TrackStatus`).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub enum TrackStatus {
+pub enum KltStatus {
     /// Tracked (and consistent backwards when checked).
     Tracked,
     /// The point left the image.
@@ -84,13 +85,17 @@ pub enum TrackStatus {
     ForwardBackward,
 }
 
+/// The former name of [`KltStatus`].
+#[deprecated(note = "renamed `KltStatus` (`TrackStatus` is the odometry trackers' status)")]
+pub type TrackStatus = KltStatus;
+
 /// A tracked point.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct KltTrack {
     /// Position in the next image, pixels.
     pub position: Vector2<f32>,
     /// Whether the track is usable.
-    pub status: TrackStatus,
+    pub status: KltStatus,
     /// Mean absolute residual over the window at the end, grey levels.
     pub error: f32,
 }
@@ -326,7 +331,7 @@ fn track_point(
     guess: Option<Vector2<f32>>,
     cfg: &KltConfig,
     s: &mut Scratch,
-) -> (Vector2<f32>, TrackStatus, f32) {
+) -> (Vector2<f32>, KltStatus, f32) {
     let win = cfg.window;
     let npix = (win * win) as f32;
     let levels = from.levels().min(to.levels()).min(cfg.levels);
@@ -371,7 +376,7 @@ fn track_point(
         let half = 0.5 * (gxx - gyy);
         let min_eig = 0.5 * (gxx + gyy) - (half * half + gxy * gxy).sqrt();
         if min_eig.is_nan() || min_eig / npix < cfg.min_eigenvalue || det <= 0.0 {
-            return (start + flow / scale, TrackStatus::SmallEigenvalue, 0.0);
+            return (start + flow / scale, KltStatus::SmallEigenvalue, 0.0);
         }
         let mut q = p + flow;
         let (w, h) = to.size(level);
@@ -382,7 +387,7 @@ fn track_point(
             let dy = -(gxx * by - gxy * bx) / det;
             q += Vector2::new(dx, dy);
             if !(q.x >= 0.0 && q.y >= 0.0 && q.x <= (w - 1) as f32 && q.y <= (h - 1) as f32) {
-                return (q / scale, TrackStatus::OutOfBounds, 0.0);
+                return (q / scale, KltStatus::OutOfBounds, 0.0);
             }
             if dx * dx + dy * dy < cfg.epsilon * cfg.epsilon {
                 break;
@@ -402,7 +407,7 @@ fn track_point(
             flow *= 2.0;
         }
     }
-    (start + flow, TrackStatus::Tracked, error)
+    (start + flow, KltStatus::Tracked, error)
 }
 
 /// Tracks `points` of `prev` into `next` with pyramidal Lucas-Kanade (see the module
@@ -410,7 +415,7 @@ fn track_point(
 ///
 /// ```
 /// use nalgebra::Vector2;
-/// use vofront_image::{track_klt, Image, KltConfig, TrackStatus};
+/// use vofront_image::{track_klt, Image, KltConfig, KltStatus};
 /// let img = |dx: f32| {
 ///     let data = (0..96 * 80)
 ///         .map(|i| {
@@ -421,7 +426,7 @@ fn track_point(
 ///     Image::new(96, 80, data).unwrap()
 /// };
 /// let tracks = track_klt(&img(0.0), &img(1.5), &[Vector2::new(48.0, 40.0)], &KltConfig::default()).unwrap();
-/// assert_eq!(tracks[0].status, TrackStatus::Tracked);
+/// assert_eq!(tracks[0].status, KltStatus::Tracked);
 /// assert!((tracks[0].position.x - 49.5).abs() < 0.05);
 /// ```
 ///
@@ -443,7 +448,7 @@ pub fn track_klt(
 /// Tracks `points` of `from`'s image into `to`'s with pyramidal Lucas-Kanade, each from its
 /// `initial` position in `to` when given (a prediction; zero flow otherwise); one [`KltTrack`]
 /// per input point, in order. A point or initial position that is not finite is
-/// [`TrackStatus::OutOfBounds`].
+/// [`KltStatus::OutOfBounds`].
 ///
 /// Errors: [`ImageError::SizeMismatch`] for pyramids of different image sizes,
 /// [`ImageError::InvalidConfig`] for a bad `cfg` or pyramids built for another window or with
@@ -489,15 +494,15 @@ pub fn track_klt_pyramids(
                 if !finite(p) || !g.map_or(true, finite) {
                     return KltTrack {
                         position: p,
-                        status: TrackStatus::OutOfBounds,
+                        status: KltStatus::OutOfBounds,
                         error: 0.0,
                     };
                 }
                 let (q, mut status, error) = track_point(from, to, p, g, cfg, s);
-                if let (TrackStatus::Tracked, Some(limit)) = (status, cfg.forward_backward) {
+                if let (KltStatus::Tracked, Some(limit)) = (status, cfg.forward_backward) {
                     let (back, back_status, _) = track_point(to, from, q, g.map(|_| p), cfg, s);
-                    if back_status != TrackStatus::Tracked || (back - p).norm() > limit {
-                        status = TrackStatus::ForwardBackward;
+                    if back_status != KltStatus::Tracked || (back - p).norm() > limit {
+                        status = KltStatus::ForwardBackward;
                     }
                 }
                 KltTrack {

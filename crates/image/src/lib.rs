@@ -36,7 +36,9 @@ pub use buffer::{GrayF32, Image};
 pub use corners::good_features_to_track;
 pub use error::ImageError;
 pub use filter::Gradients;
-pub use klt::{track_klt, track_klt_pyramids, KltConfig, KltPyramid, KltTrack, TrackStatus};
+#[allow(deprecated)]
+pub use klt::TrackStatus;
+pub use klt::{track_klt, track_klt_pyramids, KltConfig, KltPyramid, KltStatus, KltTrack};
 pub use pyramid::Pyramid;
 pub use remap::Remap;
 pub use sample::Bilinear;

@@ -7,7 +7,7 @@ use vofront_fixtures::image2d::{
 };
 use vofront_image::{
     good_features_to_track, track_klt, track_klt_pyramids, Image, ImageError, KltConfig,
-    KltPyramid, KltTrack, TrackStatus,
+    KltPyramid, KltStatus, KltTrack,
 };
 
 /// At least 80% of the tracked points must be this close to the truth, pixels. Not all of
@@ -48,7 +48,7 @@ fn accuracy(corners: &[Vector2<f32>], tracks: &[KltTrack], dx: f64, dy: f64) -> 
     let d = Vector2::new(dx as f32, dy as f32);
     // Corners whose true position keeps the whole window (plus a margin) inside the image:
     // windows crossing the border see replicated pixels and are biased by design.
-    let inside: Vec<(Vector2<f32>, TrackStatus, Vector2<f32>)> = corners
+    let inside: Vec<(Vector2<f32>, KltStatus, Vector2<f32>)> = corners
         .iter()
         .zip(tracks)
         .map(|(p, t)| (p + d, t.status, t.position))
@@ -59,7 +59,7 @@ fn accuracy(corners: &[Vector2<f32>], tracks: &[KltTrack], dx: f64, dy: f64) -> 
     assert!(inside.len() > 20, "{} corners inside", inside.len());
     let mut errors: Vec<f32> = inside
         .iter()
-        .filter(|(_, s, _)| *s == TrackStatus::Tracked)
+        .filter(|(_, s, _)| *s == KltStatus::Tracked)
         .map(|(q, _, pos)| (pos - q).norm())
         .collect();
     errors.sort_by(f32::total_cmp);
@@ -110,8 +110,8 @@ fn flat_windows_and_bad_inputs_are_reported() {
         &KltConfig::default(),
     )
     .unwrap();
-    assert_eq!(tracks[0].status, TrackStatus::SmallEigenvalue);
-    assert_eq!(tracks[1].status, TrackStatus::OutOfBounds);
+    assert_eq!(tracks[0].status, KltStatus::SmallEigenvalue);
+    assert_eq!(tracks[1].status, KltStatus::OutOfBounds);
     assert!(matches!(
         track_klt(&i1, &Image::filled(10, 10, 0.0), &[], &KltConfig::default()),
         Err(ImageError::SizeMismatch { .. })
@@ -134,11 +134,7 @@ fn forward_backward_rejects_tracks_into_an_unrelated_image() {
         },
     )
     .unwrap();
-    let ok = |t: &[KltTrack]| {
-        t.iter()
-            .filter(|t| t.status == TrackStatus::Tracked)
-            .count()
-    };
+    let ok = |t: &[KltTrack]| t.iter().filter(|t| t.status == KltStatus::Tracked).count();
     assert!(
         ok(&with) * 2 < ok(&without),
         "{} vs {}",
@@ -213,8 +209,8 @@ fn pyramids_that_do_not_fit_the_configuration_are_refused() {
     ));
     let nan = [Vector2::new(f32::NAN, 0.0), pts[1]];
     let tracks = track_klt_pyramids(&p1, &p2, &pts, Some(&nan), &cfg).unwrap();
-    assert_eq!(tracks[0].status, TrackStatus::OutOfBounds);
-    assert_eq!(tracks[1].status, TrackStatus::Tracked);
+    assert_eq!(tracks[0].status, KltStatus::OutOfBounds);
+    assert_eq!(tracks[1].status, KltStatus::Tracked);
 }
 
 #[test]
@@ -238,7 +234,7 @@ fn a_prediction_seeds_tracks_beyond_the_reach_of_the_pyramid() {
         .iter()
         .zip(&corners)
         .filter(|(t, p)| {
-            t.status == TrackStatus::Tracked
+            t.status == KltStatus::Tracked
                 && (t.position - *p - Vector2::new(dx as f32, dy as f32)).norm() < 0.5
         })
         .count();

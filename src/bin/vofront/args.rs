@@ -2,10 +2,12 @@
 
 use std::path::PathBuf;
 
+use clap::builder::{PossibleValue, PossibleValuesParser, TypedValueParser};
 use clap::{Args, Parser, Subcommand, ValueEnum};
 use vofront::geometry::camera::{Camera, Distortion, KannalaBrandt, Lens, Pinhole};
 use vofront::odometry::registry::{default_camera, TrackerKind};
 use vofront::presets::{camera_preset, principal_point_warning, PRESETS};
+use vofront::two_view::Method;
 
 /// vofront: visual-odometry front-end. Without a command, runs the synthetic demo.
 #[derive(Debug, Parser)]
@@ -158,25 +160,17 @@ impl CameraArgs {
     }
 }
 
-/// Which estimators `two-view` runs.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
-pub enum Method {
-    /// ORB + essential/homography RANSAC + refinement.
-    Feature,
-    /// Direct 2D translation, plus SE(3) when `--depth1` is given.
-    Direct,
-    /// Both.
-    All,
-}
-
-impl From<Method> for vofront::report::two_view::Method {
-    fn from(m: Method) -> Self {
-        match m {
-            Method::Feature => Self::Feature,
-            Method::Direct => Self::Direct,
-            Method::All => Self::All,
-        }
-    }
+/// The `--method` parser of `two-view`: the library's [`Method`] by its name, each value with
+/// its help line.
+fn two_view_method() -> impl TypedValueParser<Value = Method> {
+    let values = Method::ALL.map(|m| {
+        PossibleValue::new(m.name()).help(match m {
+            Method::Feature => "ORB + essential/homography RANSAC + refinement",
+            Method::Direct => "Direct 2D translation, plus SE(3) when `--depth1` is given",
+            Method::All => "Both",
+        })
+    });
+    PossibleValuesParser::new(values).try_map(|s| s.parse::<Method>())
 }
 
 /// Flags of `vofront two-view`.
@@ -196,7 +190,7 @@ pub struct TwoViewArgs {
     #[arg(long, default_value_t = 5000.0, allow_negative_numbers = true)]
     pub depth_scale: f64,
     /// Which estimators to run.
-    #[arg(long, value_enum, default_value_t = Method::All)]
+    #[arg(long, value_parser = two_view_method(), default_value_t = Method::All)]
     pub method: Method,
     /// ORB feature budget per image.
     #[arg(long, default_value_t = 2000)]

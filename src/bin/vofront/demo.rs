@@ -13,7 +13,7 @@ use vofront::geometry::lie::{direction_angle_deg, rotation_angle_deg};
 use vofront::odometry::registry::{Session, TrackerKind, TrackerOptions};
 use vofront::pipeline::gray_plane;
 
-use vofront::report::two_view::Method;
+use vofront::two_view::Method;
 
 use crate::odometry_cmd::{report, track};
 use crate::two_view::{estimate, print_text, write_pictures, Inputs};

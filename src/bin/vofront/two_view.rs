@@ -1,5 +1,6 @@
 //! `vofront two-view`: feature and direct estimates of one frame pair, as text or JSON, with
-//! pictures. The estimation and the JSON live in [`vofront::report::two_view`]; the demo
+//! pictures. The estimation lives in [`vofront::two_view`], the JSON in
+//! [`vofront::report::two_view`]; the demo
 //! reuses [`print_text`] and [`write_pictures`].
 
 use std::path::Path;
@@ -9,8 +10,9 @@ use vofront::direct::photometric_residual_map;
 use vofront::draw;
 use vofront::input::{load_depth, load_gray};
 use vofront::pipeline::gray_plane;
-pub use vofront::report::two_view::{estimate, to_json, Inputs, Outcome, Status};
+use vofront::report::two_view::to_json;
 use vofront::robust::Quality;
+pub use vofront::two_view::{estimate, Inputs, Outcome, Status};
 
 use crate::args::TwoViewArgs;
 
@@ -85,17 +87,17 @@ pub fn print_text(outcome: &Outcome) {
     }
     if let Some(r) = &outcome.translation {
         match r {
-            Ok((d, ms)) => outln!(
-                "direct 2D   shift d = ({:+.3}, {:+.3}) px with I2(x + d) = I1(x); rmse {:.2} grey levels, sigma {} px, {} iterations{}, {:.1} ms",
-                d.d.x, d.d.y, d.rmse,
-                d.covariance.map_or("unknown".to_string(), |c| format!("({:.3}, {:.3})", c[(0, 0)].sqrt(), c[(1, 1)].sqrt())),
-                d.iterations.iter().sum::<usize>(),
-                if d.converged { "" } else { " (not converged: a 2D shift does not explain this pair)" },
-                ms),
+            Ok((d, ms)) => {
+                outln!(
+                    "direct 2D   shift d = ({:+.3}, {:+.3}) px with I2(x + d) = I1(x); rmse {:.2} grey levels, sigma {} px, {} iterations{}, {:.1} ms",
+                    d.d.x, d.d.y, d.rmse,
+                    d.covariance.map_or("unknown".to_string(), |c| format!("({:.3}, {:.3})", c[(0, 0)].sqrt(), c[(1, 1)].sqrt())),
+                    d.iterations.iter().sum::<usize>(),
+                    if d.converged { "" } else { " (not converged: a 2D shift does not explain this pair)" },
+                    ms);
+                outln!("            {}", verdict_line(&d.quality));
+            }
             Err(e) => outln!("direct 2D   failed: {e}"),
-        }
-        if let Some(q) = &outcome.translation_quality {
-            outln!("            {}", verdict_line(q));
         }
     }
     if let Some(r) = &outcome.se3 {
@@ -109,11 +111,9 @@ pub fn print_text(outcome: &Outcome) {
                     rot.x, rot.y, rot.z, t.x, t.y, t.z);
                 outln!("            brightness a {:.3} b {:+.2}; rmse {:.2} grey levels, {:.0}% inliers of {} pixels, {:.1} ms",
                     s.a, s.b, s.rmse, 100.0 * s.inlier_ratio, s.valid_pixels, ms);
+                outln!("            {}", verdict_line(&s.quality));
             }
             Err(e) => outln!("direct SE3  failed: {e}"),
-        }
-        if let Some(q) = &outcome.se3_quality {
-            outln!("            {}", verdict_line(q));
         }
     }
     if let Some(rec) = &outcome.report().recommended {
@@ -237,7 +237,7 @@ pub fn run(args: &TwoViewArgs) -> Result<Status, String> {
         img2,
         depth1,
         camera,
-        method: args.method.into(),
+        method: args.method,
         features: args.features,
     };
     let outcome = estimate(&inputs);

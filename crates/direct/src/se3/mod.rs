@@ -21,11 +21,12 @@ use std::sync::Arc;
 
 use nalgebra::{Isometry3, Matrix6, SVector, Vector3};
 use rayon::prelude::*;
-use vofront_robust::{sandwich_covariance, Convergence, Loss};
+use vofront_robust::{sandwich_covariance, Convergence, Loss, Quality, QualityConfig};
 
 use crate::error::DirectError;
 use crate::lm::{run_level, LevelProblem, LmSettings, SERIAL_MAX};
 use crate::plane::{Bilinear, Plane};
+use crate::quality::{intensity_variance, se3_quality, Se3Stats};
 use crate::rgbd::{pinhole_image, RgbdFrame, Undistorter};
 
 mod level;
@@ -87,6 +88,8 @@ pub struct Se3Config {
     pub max_condition: f64,
     /// A residual within this many scales `s` counts as an inlier in `inlier_ratio`.
     pub inlier_sigmas: f32,
+    /// Thresholds of the result's [`Se3Result::quality`] verdict.
+    pub quality: QualityConfig,
 }
 
 impl Default for Se3Config {
@@ -108,6 +111,7 @@ impl Default for Se3Config {
             max_depth: 20.0,
             max_condition: 1e10,
             inlier_sigmas: 3.0,
+            quality: QualityConfig::default(),
         }
     }
 }
@@ -144,14 +148,27 @@ pub struct Se3Result {
     pub covariance: Option<Matrix6<f64>>,
     /// Why the full-resolution level stopped.
     pub reason: Convergence,
+    /// Verdict, support, 6x6 covariance of `(rho, phi)` and sigmas, judged with
+    /// [`Se3Config::quality`]: support out of the reference's candidate pixels (see
+    /// [`Se3Reference`]), the chance test on `var(I_ref) + var(I_cur)` (`I_ref` in the pinhole
+    /// geometry, `I_cur` as given), `sigma` the robust residual scale, grey levels.
+    pub quality: Quality,
 }
 
 /// A reference frame with its pixels selected per level, reusable for several current images.
+///
+/// The support of an alignment's [`Se3Result::quality`] counts against the reference's
+/// candidate pixels: those selected at full resolution (or the usable given points), and for
+/// the one-off [`align_se3`] every pixel of the frame.
 #[derive(Debug, Clone)]
 pub struct Se3Reference {
     levels: Vec<RefLevel>,
     /// Size of the reference image.
     size: (usize, usize),
+    /// Candidate pixels of the quality's support.
+    candidates: usize,
+    /// `var(I_ref)` of the pinhole reference image, grey levels^2, for the chance test.
+    variance: f64,
     /// The remap that brings current images to the pinhole geometry.
     undistorter: Option<Arc<Undistorter>>,
 }
@@ -189,8 +206,10 @@ impl Se3Reference {
             });
         }
         Ok(Self {
+            candidates: levels[0].x.len(),
             levels,
             size: frame.image().size(),
+            variance: intensity_variance(frame.image()),
             undistorter: frame.undistorter().cloned(),
         })
     }
@@ -222,6 +241,7 @@ impl Se3Reference {
                 found: current.size(),
             });
         }
+        let variances = self.variance + intensity_variance(current);
         let current = &*pinhole_image(self.undistorter.as_deref(), current)?;
         let coarse = current.coarser_levels(self.levels.len(), MIN_LEVEL_SIDE);
         let mut state = Se3State {
@@ -301,18 +321,29 @@ impl Se3Reference {
                         max_gain: cfg.max_gain,
                     });
                 }
+                let stats = Se3Stats {
+                    covariance: cov.as_ref(),
+                    valid_pixels: out.valid,
+                    inlier_ratio: inliers as f64 / valid,
+                    sigma: f64::from(out.scale),
+                    rmse: (sum_sq / valid).sqrt(),
+                    iterations: iterations.iter().sum(),
+                    reason: out.reason,
+                };
+                let quality = se3_quality(&stats, self.candidates, variances, &cfg.quality);
                 return Ok(Se3Result {
                     pose: state.pose,
                     a: state.a,
                     b: state.b,
                     iterations,
                     cost: out.cost,
-                    rmse: (sum_sq / valid).sqrt(),
-                    inlier_ratio: inliers as f64 / valid,
-                    sigma: f64::from(out.scale),
+                    rmse: stats.rmse,
+                    inlier_ratio: stats.inlier_ratio,
+                    sigma: stats.sigma,
                     valid_pixels: out.valid,
                     covariance: cov,
                     reason: out.reason,
+                    quality,
                 });
             }
         }
@@ -324,7 +355,8 @@ impl Se3Reference {
 }
 
 /// SE(3) direct alignment of `current` to `reference` from `prior` (`T_cur_ref`); see the
-/// module documentation. Prepare an [`Se3Reference`] once to align several images to it.
+/// module documentation. Prepare an [`Se3Reference`] once to align several images to it. The
+/// support of the result's quality counts against every pixel of `reference`.
 ///
 /// ```
 /// use nalgebra::{Isometry3, Translation3, UnitQuaternion};
@@ -354,7 +386,12 @@ pub fn align_se3(
     prior: &Isometry3<f64>,
     cfg: &Se3Config,
 ) -> Result<Se3Result, DirectError> {
-    Se3Reference::new(reference, cfg)?.align(current, prior, cfg)
+    let (w, h) = reference.image().size();
+    Se3Reference {
+        candidates: w * h,
+        ..Se3Reference::new(reference, cfg)?
+    }
+    .align(current, prior, cfg)
 }
 
 /// `|I_cur(w(p, T)) - a I_ref(p) - b|` for every reference pixel (pinhole geometry of

@@ -15,6 +15,7 @@ use super::select::{level_intrinsics, RefLevel};
 use super::{Se3Config, Se3Reference, MIN_LEVEL_SIDE};
 use crate::error::DirectError;
 use crate::plane::Plane;
+use crate::quality::intensity_variance;
 use crate::rgbd::{pinhole_image, Undistorter, MIN_RGBD_SIDE};
 
 /// A reference pixel with its inverse depth.
@@ -110,8 +111,10 @@ impl Se3Reference {
             return Err(DirectError::NoValidDepth);
         }
         Ok(Self {
+            candidates: levels[0].x.len(),
             levels,
             size: image.size(),
+            variance: intensity_variance(base),
             undistorter,
         })
     }

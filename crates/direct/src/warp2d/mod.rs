@@ -20,13 +20,18 @@
 
 use nalgebra::{DMatrix, Matrix3, SVector};
 use rayon::prelude::*;
-use vofront_robust::{Convergence, Loss, NormalEquations};
+use vofront_robust::{Convergence, Loss, NormalEquations, QualityConfig};
 
 use crate::error::DirectError;
 use crate::lm::{accumulate, run_level, LevelProblem, LmSettings, CHUNK, SERIAL_MAX};
 use crate::plane::{interpolate_with_gradient, Bilinear, Plane, Pyramid};
+use crate::quality::warp_quality;
 
+mod result;
 mod select;
+
+pub(crate) use result::Fit2d;
+pub use result::WarpResult;
 
 use select::{maps_inside, RefPixels};
 
@@ -107,6 +112,8 @@ pub struct WarpConfig {
     /// and the central-difference gradients then agree, which removes a bias of a few
     /// hundredths of a pixel on sharp real images.
     pub presmooth: bool,
+    /// Thresholds of the result's [`WarpResult::quality`] verdict.
+    pub quality: QualityConfig,
 }
 
 impl Default for WarpConfig {
@@ -123,33 +130,9 @@ impl Default for WarpConfig {
             affine_brightness: false,
             max_condition: 1e12,
             presmooth: true,
+            quality: QualityConfig::default(),
         }
     }
-}
-
-/// Result of [`align_affine`] and [`align_homography`] (`Serialize`: `h` as a flat
-/// column-major array, the dynamic `covariance` as nalgebra writes it, `[data, rows, cols]`
-/// with column-major `data`).
-#[derive(Debug, Clone, PartialEq, serde::Serialize)]
-pub struct WarpResult {
-    /// `H` with `I2(H x) = a I1(x) + b` (pixels of image 1 to pixels of image 2).
-    pub h: Matrix3<f64>,
-    /// Brightness gain.
-    pub a: f64,
-    /// Brightness offset, grey levels.
-    pub b: f64,
-    /// Iterations per pyramid level, index = level (0 = full resolution; 0 for skipped levels).
-    pub iterations: Vec<usize>,
-    /// Root-mean-square residual at full resolution, grey levels.
-    pub rmse: f64,
-    /// Valid residuals at full resolution over the number of pixels.
-    pub used_fraction: f64,
-    /// Covariance of the geometric parameters of the last `H(delta)` (Gauss-Newton
-    /// `sigma^2 H^-1` restricted to them), `k x k` for `k` geometric parameters; `None`
-    /// (unknown) when the final normal equations are singular.
-    pub covariance: Option<DMatrix<f64>>,
-    /// False when the full-resolution level hit its iteration limit.
-    pub converged: bool,
 }
 
 /// Warp and brightness.
@@ -418,7 +401,7 @@ pub(crate) fn align_2d<const M: usize>(
     initial: &Matrix3<f64>,
     cfg: &WarpConfig,
     forward_additive: bool,
-) -> Result<WarpResult, DirectError> {
+) -> Result<Fit2d, DirectError> {
     debug_assert_eq!(M, kind.parameters() + 2);
     debug_assert!(!forward_additive || kind == WarpKind::Translation);
     img1.check_same_size(img2)?;
@@ -540,7 +523,7 @@ pub(crate) fn align_2d<const M: usize>(
     }
     let (out, rmse) = last.expect("level 0 is always run or returns an error");
     let cov = out.system.covariance(cfg.max_condition);
-    Ok(WarpResult {
+    Ok(Fit2d {
         h: state.h / state.h[(2, 2)],
         a: state.a,
         b: state.b,
@@ -576,7 +559,8 @@ pub fn align_affine(
     initial: &Matrix3<f64>,
     cfg: &WarpConfig,
 ) -> Result<WarpResult, DirectError> {
-    align_2d::<8>(WarpKind::Affine, img1, img2, initial, cfg, false)
+    let fit = align_2d::<8>(WarpKind::Affine, img1, img2, initial, cfg, false)?;
+    Ok(warp_quality(fit, img1, img2, &cfg.quality))
 }
 
 /// Homography `I2(H x) = a I1(x) + b` from the initial guess `initial` (the identity when
@@ -587,5 +571,6 @@ pub fn align_homography(
     initial: &Matrix3<f64>,
     cfg: &WarpConfig,
 ) -> Result<WarpResult, DirectError> {
-    align_2d::<10>(WarpKind::Homography, img1, img2, initial, cfg, false)
+    let fit = align_2d::<10>(WarpKind::Homography, img1, img2, initial, cfg, false)?;
+    Ok(warp_quality(fit, img1, img2, &cfg.quality))
 }
