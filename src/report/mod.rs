@@ -6,10 +6,13 @@
 //! pipeline's [`crate::pipeline::FeatureTimings`]. The raw results themselves
 //! (`RelativePose`, `Se3Result`, `FrameEstimate`, ...) derive `Serialize` as well.
 //!
+//! - [`odometry`]: the summary of one sequence run ([`odometry::OdometryReport`], the
+//!   `odometry --json` object) from the run's session, output and evaluation;
 //! - [`two_view`]: the report of one frame pair's feature and direct estimates
 //!   ([`two_view::TwoViewReport`], the `two-view` command's JSON) from the
 //!   [`crate::two_view::Outcome`] of [`crate::two_view::estimate`].
 
+pub mod odometry;
 pub mod two_view;
 
 use nalgebra::{Isometry3, Matrix3};

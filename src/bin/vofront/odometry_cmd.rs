@@ -14,7 +14,6 @@ use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
 use std::sync::Arc;
 
 use indicatif::{ProgressBar, ProgressStyle};
-use serde_json::{json, Value};
 use vofront::dataset::{Dataset, DatasetConfig};
 use vofront::eval::{plot::write_plot, AteResult};
 use vofront::geometry::{Camera, Lens};
@@ -24,6 +23,7 @@ use vofront::odometry::run::{
     run as run_tracker, FrameRecord, MetricsCsvSink, RunControl, RunOutput, RunSummary, TumSink,
 };
 use vofront::odometry::Tracker;
+use vofront::report::odometry::{OdometryReport, Outputs};
 
 use crate::args::OdometryArgs;
 
@@ -146,57 +146,31 @@ pub fn report(session: &Session, out: &RunOutput, plot_path: Option<&Path>) -> R
     Ok(())
 }
 
-/// The `--json` summary object (keys documented in the README); writes the plot if asked.
-fn report_json(args: &OdometryArgs, session: &Session, out: &RunOutput) -> Result<Value, String> {
-    let s = &out.summary;
-    let dataset = &session.dataset;
-    let (k, d) = (session.camera.pinhole, session.camera.distortion);
-    let (mut ate_json, mut rpe_json) = (Value::Null, Value::Null);
-    if let Some(evaluation) = evaluate(session, out) {
-        ate_json = match &evaluation.ate {
-            Ok(a) => {
-                if let Some(path) = &args.plot {
-                    plot(&evaluation, a, path)?;
-                }
-                let mut stats = json!(a.stats);
-                stats["pairs"] = json!(a.pairs.len());
-                stats["alignment"] = json!(format!("{:?}", evaluation.alignment).to_lowercase());
-                stats
-            }
-            Err(e) => json!({ "error": e.to_string() }),
-        };
-        rpe_json = match &evaluation.rpe {
-            Ok(r) => {
-                json!({"translation": json!(r.translation), "rotation_deg": json!(r.rotation_deg),
-                       "rotation_scale": json!(r.rotation_scale)})
-            }
-            Err(e) => json!({ "error": e.to_string() }),
-        };
+/// The `--json` summary ([`OdometryReport`], keys documented in the README); writes the plot
+/// if asked.
+fn report_json(
+    args: &OdometryArgs,
+    session: &Session,
+    out: &RunOutput,
+) -> Result<OdometryReport, String> {
+    let evaluation = evaluate(session, out);
+    if let (Some(e), Some(path)) = (&evaluation, &args.plot) {
+        if let Ok(a) = &e.ate {
+            plot(e, a, path)?;
+        }
     }
-    Ok(json!({
-        "dataset": dataset.root.display().to_string(),
-        "format": format!("{:?}", dataset.kind).to_lowercase(),
-        "camera": {"source": session.camera_origin.to_string(), "fx": k.fx, "fy": k.fy, "cx": k.cx, "cy": k.cy,
-                   "distortion": d.coefficients(), "distortion_model": d.model_name()},
-        "method": args.method.name(),
-        "frames": s.frames,
-        "tracked": out.trajectory.len(),
-        "lost": s.lost,
-        "reinitialised": s.reinitialised,
-        "unreliable": s.unreliable,
-        "unreadable": s.unreadable,
-        "keyframes": s.keyframes,
-        "ms_per_frame": (s.frames > s.unreadable).then_some(s.mean_ms),
-        "fps": s.frames_per_second(),
-        "interrupted": s.interrupted,
-        "lost_for_good": RunSummary::lost_for_good(&out.records),
-        "ate": ate_json,
-        "rpe": rpe_json,
-        "outputs": {"trajectory": args.out.display().to_string(),
-                    "metrics": args.metrics.display().to_string(),
-                    "graph": args.graph.as_ref().map(|p| p.display().to_string()),
-                    "plot": args.plot.as_ref().map(|p| p.display().to_string())},
-    }))
+    let outputs = Outputs {
+        trajectory: args.out.display().to_string(),
+        metrics: args.metrics.display().to_string(),
+        graph: args.graph.as_ref().map(|p| p.display().to_string()),
+        plot: args.plot.as_ref().map(|p| p.display().to_string()),
+    };
+    Ok(OdometryReport::new(
+        session,
+        out,
+        evaluation.as_ref(),
+        outputs,
+    ))
 }
 
 /// Creates `path` for writing (and its missing parent folders), before any work is done.
@@ -295,7 +269,11 @@ pub fn run(args: &OdometryArgs) -> Result<u8, String> {
     }
     let out = out.map_err(|e| e.to_string())?;
     if args.json {
-        outln!("{}", report_json(args, &session, &out)?);
+        let report = report_json(args, &session, &out)?;
+        outln!(
+            "{}",
+            serde_json::to_value(&report).map_err(|e| e.to_string())?
+        );
     } else {
         report(&session, &out, args.plot.as_deref())?;
     }
