@@ -3,11 +3,13 @@
 
 use std::path::{Path, PathBuf};
 
-use image::GrayImage;
 use thiserror::Error;
+use vofront_image::Image;
 
-/// A metric depth map: metres per pixel, 0 where unknown (the image crate's float image).
-pub use vofront_image::GrayF32 as DepthMap;
+/// The former name of a metric depth map, now [`Image<f32>`] (metres per pixel, 0 where
+/// unknown), kept for users' code.
+#[deprecated(note = "use vofront_image::Image<f32>")]
+pub type DepthMap = Image<f32>;
 
 /// A file could not be used.
 #[derive(Debug, Error)]
@@ -57,14 +59,15 @@ fn open(path: &Path) -> Result<image::DynamicImage, InputError> {
     })
 }
 
-/// Loads any supported image as 8-bit grey (colour is converted with Rec. 601 luma).
-pub fn load_gray(path: &Path) -> Result<GrayImage, InputError> {
-    Ok(open(path)?.into_luma8())
+/// Loads any supported image as 8-bit grey (colour is converted with Rec. 601 luma); the
+/// decoded buffer moves into the [`Image<u8>`] without a copy.
+pub fn load_gray(path: &Path) -> Result<Image<u8>, InputError> {
+    Ok(Image::from_gray_owned(open(path)?.into_luma8()))
 }
 
 /// Loads a depth PNG and divides the stored values by `scale` (depth units per metre) into
 /// metres, see [`depth_in_metres`].
-pub fn load_depth(path: &Path, scale: f64) -> Result<DepthMap, InputError> {
+pub fn load_depth(path: &Path, scale: f64) -> Result<Image<f32>, InputError> {
     depth_in_metres(&open(path)?, scale)
         .ok_or_else(|| InputError::DepthFormat { path: path.into() })
 }
@@ -76,7 +79,7 @@ pub fn load_depth(path: &Path, scale: f64) -> Result<DepthMap, InputError> {
 /// widened to 16 bits first (which would multiply it by 257). The scale is the caller's: TUM
 /// stores 5000 units per metre, a 16-bit millimetre map is 1000, an 8-bit map is whatever its
 /// writer chose (e.g. 25 for 4 cm steps up to 10.2 m).
-pub fn depth_in_metres(image: &image::DynamicImage, scale: f64) -> Option<DepthMap> {
+pub fn depth_in_metres(image: &image::DynamicImage, scale: f64) -> Option<Image<f32>> {
     let metres = |raw: &mut dyn Iterator<Item = f64>| -> Vec<f32> {
         raw.map(|d| (d / scale) as f32).collect()
     };
@@ -86,7 +89,7 @@ pub fn depth_in_metres(image: &image::DynamicImage, scale: f64) -> Option<DepthM
         _ => return None,
     };
     Some(
-        DepthMap::from_raw(image.width(), image.height(), values)
+        Image::new(image.width() as usize, image.height() as usize, values)
             .expect("one value per decoded pixel"),
     )
 }
@@ -205,7 +208,7 @@ pub fn load_correspondences(path: &Path) -> Result<Correspondences, InputError> 
 #[cfg(test)]
 mod tests {
     use super::*;
-    use image::{ImageBuffer, Luma};
+    use image::{GrayImage, ImageBuffer, Luma};
 
     /// Writes `text` to a temporary file and reads it as correspondences.
     fn read_matches(name: &str, text: &str) -> Result<Correspondences, InputError> {
@@ -283,9 +286,9 @@ mod tests {
             .unwrap();
         // 8-bit 50 at 25 units per metre is 2 m (not 50 * 257 / 25).
         let d8 = load_depth(&p8, 25.0).unwrap();
-        assert_eq!(d8.as_raw(), &[0.0, 2.0, 4.0, 0.0, 2.0, 4.0]);
+        assert_eq!(d8.data(), &[0.0, 2.0, 4.0, 0.0, 2.0, 4.0]);
         let d16 = load_depth(&p16, 5000.0).unwrap();
-        assert_eq!(d16.as_raw(), &[0.0, 1.0, 2.0, 0.0, 1.0, 2.0]);
+        assert_eq!(d16.data(), &[0.0, 1.0, 2.0, 0.0, 1.0, 2.0]);
         image::RgbImage::new(2, 2)
             .save(dir.join("rgb.png"))
             .unwrap();

@@ -3,9 +3,9 @@
 //! - [`TwoViewEstimator::relative_pose`]: ORB on both frames, kNN-2 Hamming matching with the
 //!   ratio test, essential / homography RANSAC with model selection, chirality and refinement;
 //!   the pose `T_21` has a unit translation (monocular scale is unknown).
-//! - Direct alignment lives in [`crate::direct`]: `align_translation(&Plane, &Plane, &cfg)` and
-//!   `align_se3(&RgbdFrame, &Plane, &prior, &cfg)`; [`gray_plane`] and [`depth_plane`] convert
-//!   the `image` crate's buffers into its `Plane`.
+//! - Direct alignment lives in [`crate::direct`]: `align_translation(&Image<f32>, &Image<f32>,
+//!   &cfg)` and `align_se3(&RgbdFrame, &Image<f32>, &prior, &cfg)`; an 8-bit grey image becomes
+//!   their `f32` grey levels by [`Image::to_f32`], a depth map already is an `Image<f32>`.
 //! - Running the feature and direct estimators on one pair, each failing on its own, with a
 //!   recommendation: [`crate::two_view::estimate`].
 //!
@@ -13,13 +13,11 @@
 
 use std::time::Instant;
 
-use image::GrayImage;
-use vofront_direct::Plane;
 use vofront_features::{match_descriptors, Features, Match, MatchConfig, Orb, OrbConfig};
 use vofront_geometry::{estimate_relative_pose, Camera, RelativePose, RelativePoseConfig};
+use vofront_image::Image;
 
 pub use crate::error::VoError;
-use crate::input::DepthMap;
 use crate::timing::ms_since;
 
 /// Wall-clock time of each stage of [`TwoViewEstimator::relative_pose`], milliseconds; the
@@ -98,8 +96,8 @@ impl TwoViewEstimator {
     /// Relative pose `T_21` of two frames from the same `camera` (pixels through its lens model).
     pub fn relative_pose(
         &self,
-        img1: &GrayImage,
-        img2: &GrayImage,
+        img1: &Image<u8>,
+        img2: &Image<u8>,
         camera: &Camera,
     ) -> Result<FeaturePose, VoError> {
         let start = Instant::now();
@@ -136,14 +134,4 @@ impl TwoViewEstimator {
             timings,
         })
     }
-}
-
-/// An 8-bit grey image as a direct-alignment plane (grey levels 0..255 as `f32`).
-pub fn gray_plane(img: &GrayImage) -> Plane {
-    Plane::from_gray8(img)
-}
-
-/// A metric depth map (metres, 0 = unknown) as a direct-alignment plane.
-pub fn depth_plane(depth: &DepthMap) -> Plane {
-    Plane::from_gray_f32(depth)
 }

@@ -123,7 +123,7 @@ pub const CENTRE_TOLERANCE: f64 = 0.1;
 /// let w = principal_point_warning(&kinect, (1241, 376)).unwrap();
 /// assert!(w.contains("kitti-00-02"));
 /// ```
-pub fn principal_point_warning(camera: &Camera, (w, h): (u32, u32)) -> Option<String> {
+pub fn principal_point_warning(camera: &Camera, (w, h): (usize, usize)) -> Option<String> {
     let fits = |c: &Camera| {
         let k = c.pinhole;
         (k.cx - (w as f64 - 1.0) / 2.0).abs() <= CENTRE_TOLERANCE * w as f64

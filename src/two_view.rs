@@ -7,7 +7,6 @@ use std::fmt;
 use std::str::FromStr;
 use std::time::Instant;
 
-use image::GrayImage;
 use nalgebra::Isometry3;
 use serde::Serialize;
 use thiserror::Error;
@@ -16,11 +15,11 @@ use vofront_direct::{
     TranslationResult,
 };
 use vofront_geometry::Camera;
+use vofront_image::Image;
 use vofront_robust::Quality;
 
 use crate::error::VoError;
-use crate::input::DepthMap;
-use crate::pipeline::{depth_plane, gray_plane, FeaturePose, TwoViewEstimator};
+use crate::pipeline::{FeaturePose, TwoViewEstimator};
 use crate::report::two_view::TwoViewReport;
 use crate::timing::ms_since;
 
@@ -76,11 +75,11 @@ impl FromStr for Method {
 /// What the estimators get.
 pub struct Inputs {
     /// Frame 1, grey.
-    pub img1: GrayImage,
+    pub img1: Image<u8>,
     /// Frame 2, grey.
-    pub img2: GrayImage,
-    /// Metric depth of frame 1, enabling SE(3) direct alignment.
-    pub depth1: Option<DepthMap>,
+    pub img2: Image<u8>,
+    /// Metric depth of frame 1 (metres, 0 = unknown), enabling SE(3) direct alignment.
+    pub depth1: Option<Image<f32>>,
     /// Camera of both frames.
     pub camera: Camera,
     /// Which estimators run.
@@ -102,9 +101,9 @@ pub enum DirectPairError {
         /// `frame 2` or `depth`.
         what: &'static str,
         /// `(width, height)` of frame 1, pixels.
-        image: (u32, u32),
+        image: (usize, usize),
         /// `(width, height)` of the other, pixels.
-        other: (u32, u32),
+        other: (usize, usize),
     },
     /// The aligner failed.
     #[error(transparent)]
@@ -237,16 +236,16 @@ fn timed<T, E>(f: impl FnOnce() -> Result<T, E>) -> Result<Timed<T>, E> {
 }
 
 fn check_same_size(
-    a: &GrayImage,
-    other: (u32, u32),
+    a: &Image<u8>,
+    other: (usize, usize),
     what: &'static str,
 ) -> Result<(), DirectPairError> {
-    if a.dimensions() == other {
+    if a.size() == other {
         Ok(())
     } else {
         Err(DirectPairError::SizeMismatch {
             what,
-            image: a.dimensions(),
+            image: a.size(),
             other,
         })
     }
@@ -266,8 +265,8 @@ pub fn estimate(inputs: &Inputs) -> Outcome {
         )
     });
     let translation = run_direct.then(|| {
-        check_same_size(&inputs.img1, inputs.img2.dimensions(), "frame 2")?;
-        let (p1, p2) = (gray_plane(&inputs.img1), gray_plane(&inputs.img2));
+        check_same_size(&inputs.img1, inputs.img2.size(), "frame 2")?;
+        let (p1, p2) = (inputs.img1.to_f32(), inputs.img2.to_f32());
         Ok(timed(|| {
             align_translation(&p1, &p2, &TranslationConfig::default())
         })?)
@@ -277,12 +276,12 @@ pub fn estimate(inputs: &Inputs) -> Outcome {
         .then_some(())
         .and(inputs.depth1.as_ref())
         .map(|depth| {
-            check_same_size(&inputs.img1, inputs.img2.dimensions(), "frame 2")?;
-            check_same_size(&inputs.img1, depth.dimensions(), "depth")?;
-            let current = gray_plane(&inputs.img2);
+            check_same_size(&inputs.img1, inputs.img2.size(), "frame 2")?;
+            check_same_size(&inputs.img1, depth.size(), "depth")?;
+            let current = inputs.img2.to_f32();
             let ((fit, reference), ms) = timed(|| {
                 let reference =
-                    RgbdFrame::new(gray_plane(&inputs.img1), depth_plane(depth), &inputs.camera)?;
+                    RgbdFrame::new(inputs.img1.to_f32(), depth.clone(), &inputs.camera)?;
                 let prior = Isometry3::identity();
                 let fit = align_se3(&reference, &current, &prior, &Se3Config::default())?;
                 Ok::<_, DirectError>((fit, reference))

@@ -41,11 +41,19 @@ fn write_scene_pair(dir: &Path) -> Isometry3<f64> {
     let cam = default_camera();
     let v1 = room.render(&cam, 640, 480, &t_w1);
     let v2 = room.render(&cam, 640, 480, &t_w2);
-    to_gray8(&v1.image).save(dir.join("1.png")).unwrap();
-    to_gray8(&v2.image).save(dir.join("2.png")).unwrap();
+    to_gray8(&v1.image)
+        .to_gray()
+        .expect("a sized image")
+        .save(dir.join("1.png"))
+        .unwrap();
+    to_gray8(&v2.image)
+        .to_gray()
+        .expect("a sized image")
+        .save(dir.join("2.png"))
+        .unwrap();
     let depth: image::ImageBuffer<image::Luma<u16>, Vec<u16>> =
         image::ImageBuffer::from_fn(640, 480, |x, y| {
-            image::Luma([(v1.depth.get_pixel(x, y)[0] * 5000.0).round() as u16])
+            image::Luma([(v1.depth.at(x as usize, y as usize) * 5000.0).round() as u16])
         });
     depth.save(dir.join("1_depth.png")).unwrap();
     t_w2.inverse() * t_w1
@@ -157,9 +165,13 @@ fn two_view_direct_translation_recovers_a_known_shift() {
     let dir = temp_dir("shift");
     let (dx, dy) = (3.4, -2.2);
     to_gray8(&textured_image(320, 240, 5))
+        .to_gray()
+        .expect("a sized image")
         .save(dir.join("a.png"))
         .unwrap();
     to_gray8(&warped_textured_image(320, 240, 5, &translation(dx, dy)))
+        .to_gray()
+        .expect("a sized image")
         .save(dir.join("b.png"))
         .unwrap();
     let out = vofront(
@@ -333,9 +345,13 @@ fn bad_input_gives_one_line_and_non_zero_exit() {
 
     // Different sizes: direct methods refuse, the feature method still answers (exit 0).
     to_gray8(&textured_image(320, 240, 1))
+        .to_gray()
+        .expect("a sized image")
         .save(dir.join("small.png"))
         .unwrap();
     to_gray8(&textured_image(300, 240, 1))
+        .to_gray()
+        .expect("a sized image")
         .save(dir.join("other.png"))
         .unwrap();
     let sizes = vofront(&["two-view", "small.png", "other.png", "--json"], &dir);

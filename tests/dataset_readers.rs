@@ -78,8 +78,8 @@ fn tum_rendered_sequence_round_trips_images_depth_and_ground_truth() {
         let want = vofront::fixtures::image2d::to_gray8(&view.image);
         assert_eq!(frame.image(), &want, "frame {i}");
         let depth = frame.depth().expect("depth associated");
-        for (a, b) in depth.pixels().zip(view.depth.pixels()) {
-            assert!((a[0] - b[0]).abs() <= TUM_DEPTH_QUANTUM * 0.5 + 1e-6);
+        for (a, b) in depth.data().iter().zip(view.depth.data()) {
+            assert!((a - b).abs() <= TUM_DEPTH_QUANTUM * 0.5 + 1e-6);
         }
         let gt = data
             .ground_truth_at(i)
@@ -131,10 +131,10 @@ fn tum_association_respects_the_tolerance() {
     );
     let frame = data.load(0).expect("frame 0");
     let depth = frame.depth().expect("depth");
-    assert_eq!(depth.get_pixel(0, 0)[0], 0.0, "0 stays invalid");
-    assert_eq!(depth.get_pixel(3, 2)[0], 1.5, "3 * 2500 / 5000 m");
+    assert_eq!(depth.at(0, 0), 0.0, "0 stays invalid");
+    assert_eq!(depth.at(3, 2), 1.5, "3 * 2500 / 5000 m");
     // Colour is converted: a red-only image gives a darker grey that grows with red.
-    assert!(frame.image().get_pixel(7, 0)[0] > frame.image().get_pixel(1, 0)[0]);
+    assert!(frame.image().at(7, 0) > frame.image().at(1, 0));
     assert!(data.load(1).expect("frame 1").depth().is_none());
     // Ground truth: nearest stamp within 20 ms; frame 1 (10.1) is 30 ms from 10.13.
     let gt0 = data.ground_truth_at(0).expect("gt 0");
@@ -160,15 +160,7 @@ fn missing_or_corrupt_frames_fail_alone() {
     let data = Dataset::open(&dir.0).expect("open");
     let results: Vec<_> = data.iter().collect();
     assert_eq!(results.len(), 4);
-    assert_eq!(
-        results[0]
-            .1
-            .as_ref()
-            .expect("0 loads")
-            .image()
-            .get_pixel(0, 0)[0],
-        10
-    );
+    assert_eq!(results[0].1.as_ref().expect("0 loads").image().at(0, 0), 10);
     assert!(matches!(
         results[1].1,
         Err(DatasetError::Image { index: 1, .. })
@@ -177,15 +169,7 @@ fn missing_or_corrupt_frames_fail_alone() {
         results[2].1,
         Err(DatasetError::Image { index: 2, .. })
     ));
-    assert_eq!(
-        results[3]
-            .1
-            .as_ref()
-            .expect("3 loads")
-            .image()
-            .get_pixel(0, 0)[0],
-        30
-    );
+    assert_eq!(results[3].1.as_ref().expect("3 loads").image().at(0, 0), 30);
     assert!(matches!(
         data.load(4),
         Err(DatasetError::FrameIndex { index: 4, len: 4 })
@@ -300,10 +284,7 @@ fn image_folders_are_timed_by_fps_or_by_file_names() {
     assert_eq!(data.kind, DatasetKind::Images);
     let times: Vec<f64> = data.frames.iter().map(|f| f.timestamp).collect();
     assert_eq!(times, vec![0.0, 0.1, 0.2]);
-    assert_eq!(
-        data.load(2).expect("frame 2").image().get_pixel(1, 1)[0],
-        20
-    );
+    assert_eq!(data.load(2).expect("frame 2").image().at(1, 1), 20);
     assert!(data.camera.is_none() && data.ground_truth.is_none());
 
     let stamped = TempDir::new("images-stamped");
@@ -311,7 +292,7 @@ fn image_folders_are_timed_by_fps_or_by_file_names() {
     stamped.grey_png("1305031102.175304.png", 4);
     let data = Dataset::open(&stamped.0).expect("open stamped");
     assert_eq!(data.frames[0].timestamp, 1305031102.175304);
-    assert_eq!(data.load(1).expect("frame 1").image().get_pixel(0, 0)[0], 5);
+    assert_eq!(data.load(1).expect("frame 1").image().at(0, 0), 5);
     let bad = DatasetConfig {
         fps: Some(-5.0),
         ..DatasetConfig::default()
@@ -373,10 +354,7 @@ fn kitti_reads_calibration_times_images_and_poses() {
     );
     assert!(cam.distortion.is_identity());
     assert_eq!(data.frames[1].timestamp, 0.1036);
-    assert_eq!(
-        data.load(2).expect("frame 2").image().get_pixel(0, 0)[0],
-        100
-    );
+    assert_eq!(data.load(2).expect("frame 2").image().at(0, 0), 100);
     assert!(matches!(
         data.load(1),
         Err(DatasetError::Image { index: 1, .. })
@@ -484,10 +462,7 @@ fn euroc_reads_camera_nanosecond_stamps_and_body_ground_truth() {
     );
     assert!((data.frames[0].timestamp - 1403636579.0 - 0.763555584).abs() < 1e-6);
     assert!((data.frames[1].timestamp - data.frames[0].timestamp - 0.049999872).abs() < 1e-6);
-    assert_eq!(
-        data.load(1).expect("frame 1").image().get_pixel(3, 3)[0],
-        88
-    );
+    assert_eq!(data.load(1).expect("frame 1").image().at(3, 3), 88);
     // Body pose 5 ms before frame 0: found within the 20 ms tolerance, quaternion w first.
     let body = data.ground_truth_at(0).expect("gt");
     assert_eq!(

@@ -103,11 +103,11 @@ fn kitti_excerpt_pairs_sorted_images_with_times_and_reads_the_right_camera() {
 
     // A monocular load reads the left image only; a stereo load reads both.
     let mono = data.load(1).expect("load");
-    assert_eq!(mono.image().get_pixel(0, 0)[0], 11);
+    assert_eq!(mono.image().at(0, 0), 11);
     assert!(mono.right().is_none());
     let stereo = data.load_stereo(1).expect("load stereo");
-    assert_eq!(stereo.image().get_pixel(0, 0)[0], 11);
-    assert_eq!(stereo.right().expect("right").get_pixel(11, 4)[0], 101);
+    assert_eq!(stereo.image().at(0, 0), 11);
+    assert_eq!(stereo.right().expect("right").at(11, 4), 101);
     assert_eq!(stereo.timestamp(), 10.104);
 }
 
@@ -280,8 +280,8 @@ fn euroc_cam1_gives_the_right_images_by_timestamp_and_the_stereo_rig() {
     assert!((rig.baseline().expect("stereo") - baseline).abs() < 1e-12);
 
     let frame = data.load_stereo(1).expect("stereo frame");
-    assert_eq!(frame.image().get_pixel(9, 5)[0], 21);
-    assert_eq!(frame.right().expect("right").get_pixel(0, 0)[0], 121);
+    assert_eq!(frame.image().at(9, 5), 21);
+    assert_eq!(frame.right().expect("right").at(0, 0), 121);
     assert!(data.load(1).expect("mono").right().is_none());
     assert!(matches!(
         data.load_stereo(2),
@@ -333,19 +333,17 @@ fn shared(name: &str) -> Option<PathBuf> {
 }
 
 /// `img` resampled through a rectification map, rounded back to 8 bits.
-fn remap(img: &GrayImage, map: &vofront::core::UndistortMap) -> GrayImage {
-    let size = (img.width() as usize, img.height() as usize);
-    let remap = Remap::new(size, (map.width, map.height), &map.map_x, &map.map_y).expect("remap");
+fn remap(img: &Image<u8>, map: &vofront::core::UndistortMap) -> Image<u8> {
+    let remap =
+        Remap::new(img.size(), (map.width, map.height), &map.map_x, &map.map_y).expect("remap");
     remap
-        .bilinear(&Image::from_gray8(img), 0.0)
+        .bilinear(&img.to_f32(), 0.0)
         .expect("resample")
         .map(|&v| v.round().clamp(0.0, 255.0) as u8)
-        .to_gray()
-        .expect("8-bit")
 }
 
 /// Row offsets `|dy|` (pixels, sorted) of the ORB matches between a left and a right image.
-fn row_offsets(orb: &Orb, left: &GrayImage, right: &GrayImage) -> Vec<f64> {
+fn row_offsets(orb: &Orb, left: &Image<u8>, right: &Image<u8>) -> Vec<f64> {
     let (l, r) = (
         orb.detect_and_describe(left).expect("orb"),
         orb.detect_and_describe(right).expect("orb"),
@@ -369,8 +367,8 @@ fn euroc_real_rig_rectifies_matched_features_onto_the_same_row() {
     assert!(rig.is_stereo());
     assert!((rig.baseline().expect("stereo") - 0.110).abs() < 0.002);
     let first = data.load_stereo(0).expect("stereo frame");
-    let (w, h) = first.image().dimensions();
-    let rect = StereoRectification::new(&rig, w as usize, h as usize).expect("rectify");
+    let (w, h) = first.image().size();
+    let rect = StereoRectification::new(&rig, w, h).expect("rectify");
     let orb = Orb::new(OrbConfig {
         n_features: 1000,
         ..OrbConfig::default()
@@ -425,9 +423,9 @@ fn kitti_real_rig_is_already_rectified() {
     let rig = data.rig.expect("rig");
     assert!((rig.baseline().expect("stereo") - 0.537).abs() < 0.001);
     let frame = data.load_stereo(0).expect("stereo frame");
-    let (w, h) = frame.image().dimensions();
-    assert_eq!(frame.right().expect("right").dimensions(), (w, h));
-    let rect = StereoRectification::new(&rig, w as usize, h as usize).expect("rectify");
+    let (w, h) = frame.image().size();
+    assert_eq!(frame.right().expect("right").size(), (w, h));
+    let rect = StereoRectification::new(&rig, w, h).expect("rectify");
     assert_eq!(*rect.rotation_left(), Rotation3::identity());
     assert_eq!(*rect.rotation_right(), Rotation3::identity());
     let (p, want) = (rect.pinhole(), rig.left().pinhole);

@@ -17,6 +17,7 @@ use vofront::dataset::Frame;
 use vofront::eval::{ate, rpe, Alignment, EvalConfig};
 use vofront::fixtures::driving::{DrivingSequence, FRAME_RATE};
 use vofront::fixtures::image2d::to_gray8;
+use vofront::image::Image;
 use vofront::odometry::mono::{MonoConfig, MonoTracker};
 use vofront::odometry::{TrackStatus, Tracker};
 use vofront::robust::median_in_place;
@@ -81,7 +82,7 @@ fn mono_tracker_follows_the_rendered_drive() {
 fn featureless_frames_are_skipped_not_waited_on() {
     let seq = DrivingSequence::new(12, 12);
     let (w, h) = seq.size;
-    let blank = || image::GrayImage::from_pixel(w, h, image::Luma([128]));
+    let blank = || Image::filled(w as usize, h as usize, 128u8);
     let rendered = |i: usize| to_gray8(&seq.render(i).image);
     // blank, r0, blank, r1 .. r6, blank, r7 .. r11
     let mut order: Vec<Option<usize>> = vec![None, Some(0), None];
@@ -121,7 +122,7 @@ fn a_segment_break_keeps_the_speed_of_the_motion_model() {
     let before = DrivingSequence::new(21, FRAMES);
     let after = DrivingSequence::new(22, FRAMES);
     let (w, h) = before.size;
-    let blank = || image::GrayImage::from_pixel(w, h, image::Luma([128]));
+    let blank = || Image::filled(w as usize, h as usize, 128u8);
     let mut tracker = MonoTracker::new(before.camera, MonoConfig::default()).expect("tracker");
     let estimates: Vec<_> = (0..FRAMES)
         .map(|i| {

@@ -5,13 +5,12 @@
 use std::panic::{catch_unwind, AssertUnwindSafe};
 use std::path::{Path, PathBuf};
 
-use image::{GrayImage, ImageBuffer, Luma};
 use nalgebra::{Isometry3, Matrix3, Point3, Translation3, UnitQuaternion, Vector2, Vector3};
 use proptest::prelude::*;
 use vofront::dataset::{Dataset, Frame};
 use vofront::direct::{
     align_affine, align_homography, align_se3, align_translation, good_features_to_track,
-    photometric_residual_map, track_klt, KltConfig, Plane, RgbdFrame, Se3Config, TranslationConfig,
+    photometric_residual_map, track_klt, KltConfig, RgbdFrame, Se3Config, TranslationConfig,
     WarpConfig,
 };
 use vofront::eval::{ate, rpe, Alignment, EvalConfig};
@@ -25,6 +24,7 @@ use vofront::geometry::{
     BundleConfig, BundleProblem, Camera, Distortion, KannalaBrandt, Lens, Observation, Pinhole,
     PnpConfig, RelativePoseConfig, UndistortMap,
 };
+use vofront::image::Image;
 use vofront::input::{load_correspondences, load_depth, load_gray};
 use vofront::odometry::direct::{DirectTracker, DirectTrackerConfig};
 use vofront::odometry::feature_rgbd::{FeatureRgbdConfig, FeatureRgbdTracker};
@@ -70,8 +70,8 @@ fn wild_f64() -> impl Strategy<Value = f64> {
     ]
 }
 
-/// A plane of arbitrary (small) size: smooth texture, constant, or wild values.
-fn plane() -> impl Strategy<Value = Plane> {
+/// A float image of arbitrary (small) size: smooth texture, constant, or wild values.
+fn plane() -> impl Strategy<Value = Image<f32>> {
     (0usize..80, 0usize..60, 0u8..3, any::<u64>(), wild_f32()).prop_map(|(w, h, kind, seed, v)| {
         let data = (0..w * h)
             .map(|i| match kind {
@@ -86,16 +86,17 @@ fn plane() -> impl Strategy<Value = Plane> {
                 }
             })
             .collect();
-        Plane::new(w, h, data).expect("w * h values")
+        Image::new(w, h, data).expect("w * h values")
     })
 }
 
 /// A grey image of arbitrary (small) size with random content.
-fn gray() -> impl Strategy<Value = GrayImage> {
-    (0u32..120, 0u32..90, any::<u64>()).prop_map(|(w, h, seed)| {
-        GrayImage::from_fn(w, h, |x, y| {
-            Luma([((x as u64 * 31 + y as u64 * 17 + seed) % 256) as u8])
-        })
+fn gray() -> impl Strategy<Value = Image<u8>> {
+    (0usize..120, 0usize..90, any::<u64>()).prop_map(|(w, h, seed)| {
+        let data = (0..w * h)
+            .map(|i| (((i % w) as u64 * 31 + (i / w) as u64 * 17 + seed) % 256) as u8)
+            .collect();
+        Image::new(w, h, data).expect("w * h values")
     })
 }
 
@@ -362,13 +363,13 @@ proptest! {
         // trackers get the frames it accepts.
         let mut accepted = Vec::new();
         for ((image, depth_kind, z), timestamp) in frames.into_iter().zip(timestamps) {
-            let (w, h) = image.dimensions();
+            let (w, h) = image.size();
             let depth = match depth_kind {
                 0 => None,
-                1 => Some(ImageBuffer::from_pixel(w, h, Luma([z]))),
-                _ => Some(ImageBuffer::from_pixel(w / 2 + 1, h, Luma([2.0]))),
+                1 => Some(Image::filled(w, h, z)),
+                _ => Some(Image::filled(w / 2 + 1, h, 2.0)),
             };
-            let valid = timestamp.is_finite() && depth.as_ref().map_or(true, |d| d.dimensions() == (w, h));
+            let valid = timestamp.is_finite() && depth.as_ref().map_or(true, |d| d.size() == (w, h));
             let frame = Frame::new(timestamp, image, depth);
             prop_assert_eq!(frame.is_ok(), valid, "{:?}", frame.as_ref().err());
             accepted.extend(frame.ok());
@@ -398,14 +399,14 @@ proptest! {
 }
 
 /// A textured plane of `w x h` (large enough for every aligner).
-fn texture(w: usize, h: usize, phase: f32) -> Plane {
+fn texture(w: usize, h: usize, phase: f32) -> Image<f32> {
     let data = (0..w * h)
         .map(|i| {
             let (x, y) = ((i % w) as f32, (i / w) as f32);
             128.0 + 50.0 * (0.3 * x + phase).sin() * (0.23 * y).cos() + 20.0 * (0.05 * x * y).sin()
         })
         .collect();
-    Plane::new(w, h, data).expect("w * h values")
+    Image::new(w, h, data).expect("w * h values")
 }
 
 proptest! {
@@ -457,7 +458,7 @@ proptest! {
         let pts = [nalgebra::Vector2::new(w as f32 / 2.0, w as f32 / 2.0)];
         no_panic("track_klt", || track_klt(&p1, &p2, &pts, &kcfg))?;
         no_panic("good_features_to_track", || good_features_to_track(&p1, budget, x, x))?;
-        let depth = Plane::filled(w, w, 2.0);
+        let depth = Image::filled(w, w, 2.0);
         let scfg = Se3Config {
             levels,
             pixel_budget: budget,
@@ -498,7 +499,8 @@ proptest! {
             patch_size: patch,
             ..OrbConfig::default()
         };
-        let img = GrayImage::from_fn(160, 120, |x, y| Luma([((x * 7 + y * 13) % 256) as u8]));
+        let data = (0..160 * 120).map(|i| ((i % 160 * 7 + i / 160 * 13) % 256) as u8).collect();
+        let img = Image::new(160, 120, data).expect("160 * 120 values");
         no_panic("Orb", || Orb::new(cfg.clone()).map(|orb| orb.detect_and_describe(&img)))?;
     }
 }
@@ -528,6 +530,6 @@ fn inconsistent_feature_arrays_are_an_error() {
 #[test]
 fn a_short_plane_buffer_is_an_error_not_a_panic() {
     // The case of the issue: 64 x 64 with 10 values used to reach `align_translation`.
-    assert!(Plane::new(64, 64, vec![0.0; 10]).is_err());
-    assert!(Plane::new(usize::MAX, 2, Vec::new()).is_err());
+    assert!(Image::<f32>::new(64, 64, vec![0.0; 10]).is_err());
+    assert!(Image::<f32>::new(usize::MAX, 2, Vec::new()).is_err());
 }

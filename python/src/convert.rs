@@ -4,7 +4,6 @@
 //! naming the argument; an image is read exactly once, converted into the buffer the library
 //! owns (`uint8` for the feature pipeline, `f32` for the direct aligners).
 
-use image::GrayImage;
 use nalgebra::{Isometry3, Matrix3, Rotation3, Translation3, UnitQuaternion, Vector2};
 use numpy::ndarray::{Array2, ArrayView2};
 use numpy::{
@@ -16,8 +15,7 @@ use pyo3::prelude::*;
 use pyo3::types::{PyDict, PyList};
 use serde_json::Value;
 use vofront::core::camera::{Camera, Distortion, Pinhole};
-use vofront::direct::Plane;
-use vofront::input::DepthMap;
+use vofront::image::Image;
 
 /// A 1-D numpy array owned by Python.
 pub type Arr1<'py, T> = Bound<'py, numpy::PyArray1<T>>;
@@ -91,7 +89,7 @@ fn pixels<'py>(obj: &Bound<'py, PyAny>, what: &str) -> PyResult<(Pixels<'py>, (u
 
 /// The 8-bit image the feature pipeline takes, in one pass over the array (`float32` values
 /// rounded and clamped to 0..255).
-pub fn gray8(obj: &Bound<'_, PyAny>, what: &str) -> PyResult<GrayImage> {
+pub fn gray8(obj: &Bound<'_, PyAny>, what: &str) -> PyResult<Image<u8>> {
     let (px, (h, w)) = pixels(obj, what)?;
     let data = match px {
         Pixels::U8(a) => to_vec(a.as_array()),
@@ -101,17 +99,17 @@ pub fn gray8(obj: &Bound<'_, PyAny>, what: &str) -> PyResult<GrayImage> {
             .map(|&v| v.round().clamp(0.0, 255.0) as u8)
             .collect(),
     };
-    Ok(GrayImage::from_raw(w as u32, h as u32, data).expect("h * w values for an h x w image"))
+    Image::new(w, h, data).map_err(|e| bad(format!("{what}: {e}")))
 }
 
-/// The `f32` plane (grey levels) the direct aligners take, in one pass over the array.
-pub fn plane(obj: &Bound<'_, PyAny>, what: &str) -> PyResult<Plane> {
+/// The `f32` grey levels the direct aligners take, in one pass over the array.
+pub fn gray_f32(obj: &Bound<'_, PyAny>, what: &str) -> PyResult<Image<f32>> {
     let (px, (h, w)) = pixels(obj, what)?;
     let data = match px {
         Pixels::U8(a) => a.as_array().iter().map(|&v| f32::from(v)).collect(),
         Pixels::F32(a) => to_vec(a.as_array()),
     };
-    Plane::new(w, h, data).map_err(|e| bad(format!("{what}: {e}")))
+    Image::new(w, h, data).map_err(|e| bad(format!("{what}: {e}")))
 }
 
 /// Metric depth values (metres, 0 = unknown) of a `(H, W)` array: `uint16` raw sensor units
@@ -152,16 +150,10 @@ fn depth_values(
     )))
 }
 
-/// A metric depth map (see [`depth_values`]) as the library's [`DepthMap`].
-pub fn depth(obj: &Bound<'_, PyAny>, scale: f64, what: &str) -> PyResult<DepthMap> {
+/// A metric depth map (see [`depth_values`]): metres, 0 = unknown.
+pub fn depth(obj: &Bound<'_, PyAny>, scale: f64, what: &str) -> PyResult<Image<f32>> {
     let (w, h, metres) = depth_values(obj, scale, what)?;
-    Ok(DepthMap::from_raw(w as u32, h as u32, metres).expect("h * w values for an h x w map"))
-}
-
-/// A metric depth map (see [`depth_values`]) as a direct-alignment plane.
-pub fn depth_plane(obj: &Bound<'_, PyAny>, scale: f64, what: &str) -> PyResult<Plane> {
-    let (w, h, metres) = depth_values(obj, scale, what)?;
-    Plane::new(w, h, metres).map_err(|e| bad(format!("{what}: {e}")))
+    Image::new(w, h, metres).map_err(|e| bad(format!("{what}: {e}")))
 }
 
 /// A `(rows, cols)` float64 matrix from anything numpy converts, checked for finiteness.

@@ -12,9 +12,7 @@ use vofront::direct::{
 };
 use vofront::timing::ms_since;
 
-use crate::convert::{
-    array2, bad, camera, depth_plane, plane, points, pose, pose_matrix, Arr1, Arr2,
-};
+use crate::convert::{array2, bad, camera, depth, gray_f32, points, pose, pose_matrix, Arr1, Arr2};
 use crate::errors::{failed, release};
 
 /// The `d` that moves the content of `img1` onto `img2`: `img2(x + d) = img1(x)`, pixels.
@@ -33,7 +31,7 @@ pub fn align_translation<'py>(
     max_iterations: usize,
     affine_brightness: bool,
 ) -> PyResult<Bound<'py, PyDict>> {
-    let (img1, img2) = (plane(img1, "img1")?, plane(img2, "img2")?);
+    let (img1, img2) = (gray_f32(img1, "img1")?, gray_f32(img2, "img2")?);
     if levels == 0 || max_iterations == 0 {
         return Err(bad("levels and max_iterations must be positive"));
     }
@@ -119,9 +117,9 @@ pub fn align_se3<'py>(
     prior: Option<&Bound<'py, PyAny>>,
     depth_scale: f64,
 ) -> PyResult<Bound<'py, PyDict>> {
-    let reference = plane(ref_img, "ref_img")?;
-    let depth1 = depth_plane(ref_depth, depth_scale, "ref_depth")?;
-    let current = plane(cur_img, "cur_img")?;
+    let reference = gray_f32(ref_img, "ref_img")?;
+    let depth1 = depth(ref_depth, depth_scale, "ref_depth")?;
+    let current = gray_f32(cur_img, "cur_img")?;
     let camera = camera(K, dist)?;
     let prior = match prior.filter(|p| !p.is_none()) {
         Some(p) => pose(p, "prior")?,
@@ -188,7 +186,7 @@ pub fn klt<'py>(
     levels: usize,
     forward_backward: Option<f32>,
 ) -> PyResult<KltOutput<'py>> {
-    let (img1, img2) = (plane(img1, "img1")?, plane(img2, "img2")?);
+    let (img1, img2) = (gray_f32(img1, "img1")?, gray_f32(img2, "img2")?);
     let start: Vec<Vector2<f32>> = self::points(points, "points")?
         .iter()
         .map(|p| p.cast::<f32>())

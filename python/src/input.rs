@@ -21,8 +21,8 @@ fn input_error(e: InputError) -> PyErr {
 #[pyfunction]
 pub fn load_gray<'py>(py: Python<'py>, path: PathBuf) -> PyResult<Arr2<'py, u8>> {
     let img = release(py, || gray_of(&path).map_err(input_error))?;
-    let (w, h) = img.dimensions();
-    Ok(array2(py, h as usize, w as usize, img.into_raw()))
+    let (w, h) = img.size();
+    Ok(array2(py, h, w, img.into_data()))
 }
 
 /// A 16-bit (or 8-bit) depth PNG as (H, W) float32 metres: value / `depth_scale` (5000 per
@@ -40,6 +40,6 @@ pub fn load_depth<'py>(
         )));
     }
     let depth = release(py, || depth_of(&path, depth_scale).map_err(input_error))?;
-    let (w, h) = depth.dimensions();
-    Ok(array2(py, h as usize, w as usize, depth.into_raw()))
+    let (w, h) = depth.size();
+    Ok(array2(py, h, w, depth.into_data()))
 }

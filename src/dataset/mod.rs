@@ -35,7 +35,7 @@
 //! let data = Dataset::open(&dir).unwrap();
 //! assert_eq!(data.kind, DatasetKind::Tum);
 //! assert_eq!(data.frames.len(), 2);
-//! assert_eq!(data.load(0).unwrap().image().dimensions(), (4, 3));
+//! assert_eq!(data.load(0).unwrap().image().size(), (4, 3));
 //! assert!(data.load(1).is_err()); // rgb/b.png is missing: that frame fails, the run goes on
 //! std::fs::remove_dir_all(&dir).unwrap();
 //! ```
@@ -54,14 +54,16 @@ use nalgebra::Isometry3;
 use thiserror::Error;
 use vofront_core::rig::{Rig, RigError};
 use vofront_geometry::camera::{Camera, CameraError};
+use vofront_image::Image;
 
 use crate::trajectory::{Trajectory, TrajectoryError};
 
 pub use frame::{Frame, FrameError};
 
-/// Metric depth image: metres, `0.0` where the sensor gave no depth (the image crate's float
-/// image).
-pub use vofront_image::GrayF32 as DepthImage;
+/// The former name of a metric depth map, now [`Image<f32>`] (metres, `0.0` where the sensor
+/// gave no depth), kept for users' code.
+#[deprecated(note = "use vofront_image::Image<f32>")]
+pub type DepthImage = Image<f32>;
 
 /// Errors of dataset opening and frame loading.
 #[derive(Debug, Error)]
@@ -329,11 +331,12 @@ impl Dataset {
     }
 
     /// Loads frame `index`: the image as 8-bit grey (colour converted with the `image`
-    /// crate's luma weights) and, if listed, the depth map as metres (`raw / depth_scale`).
-    /// A listed right image is not read (see [`Dataset::load_stereo`]).
+    /// crate's luma weights; the decoded buffer moves into the [`Image<u8>`], no copy) and, if
+    /// listed, the depth map as metres (`raw / depth_scale`). A listed right image is not read
+    /// (see [`Dataset::load_stereo`]).
     pub fn load(&self, index: usize) -> Result<Frame, DatasetError> {
         let info = self.info(index)?;
-        let image = open_image(index, &info.image)?.into_luma8();
+        let image = Image::from_gray_owned(open_image(index, &info.image)?.into_luma8());
         let depth = match &info.depth {
             Some(path) => Some(self.load_depth(index, path)?),
             None => None,
@@ -358,7 +361,7 @@ impl Dataset {
             .right
             .as_ref()
             .ok_or(DatasetError::NoRightImage { index })?;
-        let right = open_image(index, path)?.into_luma8();
+        let right = Image::from_gray_owned(open_image(index, path)?.into_luma8());
         self.load(index)?
             .with_right(right)
             .map_err(|source| DatasetError::Frame { index, source })
@@ -387,7 +390,7 @@ impl Dataset {
     }
 
     /// The depth map of frame `index` in metres (its size is checked by [`Frame::new`]).
-    fn load_depth(&self, index: usize, path: &Path) -> Result<DepthImage, DatasetError> {
+    fn load_depth(&self, index: usize, path: &Path) -> Result<Image<f32>, DatasetError> {
         let raw = open_image(index, path)?;
         crate::input::depth_in_metres(&raw, self.depth_scale.unwrap_or(1.0)).ok_or_else(|| {
             DatasetError::BadDepth {

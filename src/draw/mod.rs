@@ -5,12 +5,13 @@
 pub mod font;
 
 use ab_glyph::PxScale;
-use image::{GrayImage, Rgb, RgbImage};
+use image::{Rgb, RgbImage};
 use imageproc::drawing::{
     draw_filled_rect_mut, draw_hollow_circle_mut, draw_hollow_rect_mut, draw_line_segment_mut,
     draw_text_mut, text_size,
 };
 use imageproc::rect::Rect;
+use vofront_image::Image;
 
 /// Green: inliers and keypoints.
 pub const GREEN: Rgb<u8> = Rgb([40, 220, 60]);
@@ -28,9 +29,12 @@ const TEXT_PX: f32 = 16.0;
 /// Width of the legend strip right of a heat map, pixels.
 const BAR_STRIP: u32 = 150;
 
-/// A grey image as RGB.
-pub fn to_rgb(img: &GrayImage) -> RgbImage {
-    image::DynamicImage::ImageLuma8(img.clone()).to_rgb8()
+/// A grey image as RGB (the grey level in all three channels).
+pub fn to_rgb(img: &Image<u8>) -> RgbImage {
+    RgbImage::from_fn(img.width() as u32, img.height() as u32, |x, y| {
+        let g = img.at(x as usize, y as usize);
+        Rgb([g, g, g])
+    })
 }
 
 /// A one-pixel line from `a` to `b` (pixel positions), clipped to the image.
@@ -69,7 +73,7 @@ pub fn with_caption(img: &RgbImage, lines: &[String]) -> RgbImage {
 
 /// Keypoints drawn as circles (radius grows with the pyramid scale) on a grey image, with a
 /// caption giving their number.
-pub fn keypoints(img: &GrayImage, points: &[(f32, f32, f32)]) -> RgbImage {
+pub fn keypoints(img: &Image<u8>, points: &[(f32, f32, f32)]) -> RgbImage {
     let mut out = to_rgb(img);
     for &(x, y, scale) in points {
         circle(&mut out, (x, y), 3.0 * scale, GREEN);
@@ -86,9 +90,9 @@ pub type MatchLine = ((f32, f32), (f32, f32), bool);
 
 /// Two images side by side with a line per match, green for inliers and red for outliers
 /// (add a caption with [`with_caption`]).
-pub fn matches(img1: &GrayImage, img2: &GrayImage, pairs: &[MatchLine]) -> RgbImage {
-    let (w1, w2) = (img1.width(), img2.width());
-    let h = img1.height().max(img2.height());
+pub fn matches(img1: &Image<u8>, img2: &Image<u8>, pairs: &[MatchLine]) -> RgbImage {
+    let (w1, w2) = (img1.width() as u32, img2.width() as u32);
+    let h = img1.height().max(img2.height()) as u32;
     let mut out = RgbImage::new(w1 + w2, h);
     image::imageops::replace(&mut out, &to_rgb(img1), 0, 0);
     image::imageops::replace(&mut out, &to_rgb(img2), w1 as i64, 0);

@@ -12,8 +12,9 @@ use std::sync::Arc;
 use std::time::Instant;
 
 use nalgebra::Isometry3;
-use vofront_direct::{DirectError, Plane, RgbdFrame, Se3Config, Se3Reference, Undistorter};
+use vofront_direct::{DirectError, RgbdFrame, Se3Config, Se3Reference, Undistorter};
 use vofront_geometry::Camera;
+use vofront_image::Image;
 use vofront_robust::{QualityConfig, Verdict};
 
 use super::keyframe::{KeyframePolicy, KeyframeView};
@@ -94,7 +95,7 @@ pub struct DirectTracker {
     slot: KeyframeSlot<Keyframe>,
 }
 
-fn median_depth(depth: &Plane) -> f64 {
+fn median_depth(depth: &Image<f32>) -> f64 {
     let mut valid: Vec<f64> = depth
         .data()
         .iter()
@@ -115,15 +116,14 @@ impl DirectTracker {
         }
     }
 
-    /// A keyframe from a frame's grey `image` (already a plane) and its depth, at `t_wc`.
+    /// A keyframe from a frame's grey levels `image` (already `f32`) and its depth, at `t_wc`.
     fn make_keyframe(
         &mut self,
         frame: &Frame,
-        image: Plane,
+        image: Image<f32>,
         t_wc: Isometry3<f64>,
     ) -> Result<Keyframe, VoError> {
-        let depth = frame.depth().ok_or(VoError::NoDepth)?;
-        let depth = Plane::from_gray_f32(depth);
+        let depth = frame.depth().ok_or(VoError::NoDepth)?.clone();
         let undistorter = self.undistorter_for(image.size())?;
         let rgbd = RgbdFrame::with_undistorter(image, depth, self.camera.pinhole, undistorter)?;
         let reference = Se3Reference::new(&rgbd, &self.cfg.se3)?;
@@ -164,7 +164,7 @@ impl Tracker for DirectTracker {
     fn track(&mut self, frame: &Frame) -> FrameEstimate {
         let start = Instant::now();
         let predicted = self.slot.predict();
-        let current = Plane::from_gray8(frame.image());
+        let current = frame.image().to_f32();
         let Some(kf) = &mut self.slot.keyframe else {
             let made = self.make_keyframe(frame, current, predicted);
             return self

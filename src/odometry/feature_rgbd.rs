@@ -137,9 +137,7 @@ impl FeatureRgbdTracker {
         let points: Vec<Option<Point3<f64>>> = (0..features.len())
             .map(|i| {
                 let (x, y) = (features.xs()[i].round(), features.ys()[i].round());
-                let z = depth
-                    .get_pixel_checked(x as u32, y as u32)
-                    .map_or(0.0, |d| d[0] as f64);
+                let z = depth.get(x as usize, y as usize).map_or(0.0, |&d| d as f64);
                 if !(z > lo && z < hi) {
                     return None;
                 }

@@ -11,21 +11,22 @@
 use criterion::{criterion_group, criterion_main, Criterion};
 use nalgebra::Isometry3;
 use vofront_direct::{
-    align_se3, align_translation, good_features_to_track, track_klt, KltConfig, Plane, RgbdFrame,
+    align_se3, align_translation, good_features_to_track, track_klt, KltConfig, RgbdFrame,
     Se3Config, TranslationConfig, TranslationMethod,
 };
 use vofront_fixtures::image2d::{
     gaussian_blur, textured_image, translation, warped_textured_image,
 };
 use vofront_fixtures::scene::{default_camera, pose_wc, Scene};
+use vofront_image::Image;
 
-fn shifted_pair() -> (Plane, Plane) {
+fn shifted_pair() -> (Image<f32>, Image<f32>) {
     let i1 = gaussian_blur(&textured_image(640, 480, 1), 1.0);
     let i2 = gaussian_blur(
         &warped_textured_image(640, 480, 1, &translation(2.3, -1.7)),
         1.0,
     );
-    (Plane::from_gray_f32(&i1), Plane::from_gray_f32(&i2))
+    (i1, i2)
 }
 
 fn bench_translation(c: &mut Criterion) {
@@ -54,9 +55,9 @@ fn bench_se3(c: &mut Criterion) {
         480,
         &pose_wc([0.04, -0.025, 0.06], 0.025, -0.015, 0.01),
     );
-    let image = Plane::from_gray_f32(&first.image);
-    let depth = Plane::from_gray_f32(&first.depth);
-    let current = Plane::from_gray_f32(&second.image);
+    let image = first.image;
+    let depth = first.depth.clone();
+    let current = second.image;
     let cfg = Se3Config::default();
     c.bench_function("se3_640x480", |b| {
         b.iter(|| {

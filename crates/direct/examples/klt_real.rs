@@ -11,7 +11,8 @@
 use std::io::Write;
 use std::time::Instant;
 
-use vofront_direct::{good_features_to_track, track_klt, KltConfig, KltStatus, Plane};
+use vofront_direct::{good_features_to_track, track_klt, KltConfig, KltStatus};
+use vofront_image::Image;
 
 fn median_ms<T>(reps: usize, mut f: impl FnMut() -> T) -> (f64, T) {
     let mut times = Vec::new();
@@ -34,8 +35,8 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         eprintln!("usage: klt_real IMG1 IMG2 [N] [REPS] [OUT.csv]");
         std::process::exit(2);
     }
-    let i1 = Plane::from_gray8(&image::open(&args[1])?.to_luma8());
-    let i2 = Plane::from_gray8(&image::open(&args[2])?.to_luma8());
+    let i1 = Image::from_gray8(&image::open(&args[1])?.to_luma8());
+    let i2 = Image::from_gray8(&image::open(&args[2])?.to_luma8());
     let n: usize = args.get(3).map_or(Ok(500), |s| s.parse())?;
     let reps: usize = args.get(4).map_or(Ok(20), |s| s.parse())?;
     let (detect_ms, corners) = median_ms(reps, || good_features_to_track(&i1, n, 0.01, 8.0));

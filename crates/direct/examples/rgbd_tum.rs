@@ -19,7 +19,8 @@ use std::time::Instant;
 
 use nalgebra::{Isometry3, Quaternion, Translation3, UnitQuaternion};
 use vofront_core::{Camera, Distortion, Pinhole};
-use vofront_direct::{align_se3, Plane, RgbdFrame, Se3Config, Undistorter};
+use vofront_direct::{align_se3, RgbdFrame, Se3Config, Undistorter};
+use vofront_image::Image;
 use vofront_robust::Loss;
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {
@@ -51,17 +52,17 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             Distortion::from_array([0.2624, -0.9531, -0.0054, 0.0026, 1.1633]),
         ),
     };
-    let grey = |name: &str| -> Result<Plane, Box<dyn std::error::Error>> {
-        Ok(Plane::from_gray8(&image::open(dir.join(name))?.to_luma8()))
+    let grey = |name: &str| -> Result<Image<f32>, Box<dyn std::error::Error>> {
+        Ok(Image::from_gray8(&image::open(dir.join(name))?.to_luma8()))
     };
-    let depth = |name: &str| -> Result<Plane, Box<dyn std::error::Error>> {
+    let depth = |name: &str| -> Result<Image<f32>, Box<dyn std::error::Error>> {
         let raw = image::open(dir.join(name))?.to_luma16();
         let data = raw
             .as_raw()
             .iter()
             .map(|&v| f32::from(v) / 5000.0)
             .collect();
-        Ok(Plane::new(
+        Ok(Image::new(
             raw.width() as usize,
             raw.height() as usize,
             data,

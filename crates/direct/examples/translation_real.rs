@@ -9,7 +9,8 @@
 
 use std::time::Instant;
 
-use vofront_direct::{align_translation, Plane, TranslationConfig, TranslationMethod};
+use vofront_direct::{align_translation, TranslationConfig, TranslationMethod};
+use vofront_image::Image;
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {
     let args: Vec<String> = std::env::args().collect();
@@ -17,7 +18,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         eprintln!("usage: translation_real IMG DX DY [REPS]");
         std::process::exit(2);
     }
-    let img = Plane::from_gray8(&image::open(&args[1])?.to_luma8());
+    let img = Image::from_gray8(&image::open(&args[1])?.to_luma8());
     let (dx, dy): (f64, f64) = (args[2].parse()?, args[3].parse()?);
     let reps: usize = args.get(4).map_or(Ok(20), |s| s.parse())?;
     let quantised = ((dx * 32.0).round() / 32.0, (dy * 32.0).round() / 32.0);
@@ -57,9 +58,9 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
 }
 
 /// `moved(x, y) = img(x - dx, y - dy)`, bilinear, 0 outside (`cv2.warpAffine` semantics).
-fn shift_like_opencv(img: &Plane, dx: f64, dy: f64) -> Plane {
+fn shift_like_opencv(img: &Image<f32>, dx: f64, dy: f64) -> Image<f32> {
     let (w, h) = img.size();
-    let mut out = Plane::filled(w, h, 0.0);
+    let mut out = Image::filled(w, h, 0.0);
     for y in 0..h {
         for x in 0..w {
             let (sx, sy) = (x as f64 - dx, y as f64 - dy);

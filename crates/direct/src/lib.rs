@@ -1,7 +1,7 @@
 //! Direct photometric alignment and sparse optical flow.
 //!
-//! - [`plane`]: [`Plane`], the image crate's `f32` image (`vofront_image`: pyramids, gradients,
-//!   bilinear sampling, remap);
+//! - [`plane`]: what the aligners take from `vofront_image`, whose [`vofront_image::Image<f32>`]
+//!   is every image and depth map here (pyramids, gradients, bilinear sampling, remap);
 //! - [`translation`]: robust coarse-to-fine 2D translation `I2(x + d) = I1(x)`;
 //! - [`warp2d`]: affine and homography Lucas-Kanade with optional brightness `a I + b`;
 //! - [`rgbd`]: reference frames (grey image + metric depth), undistortion, pixel selection;
@@ -22,15 +22,15 @@
 //!
 //! ```
 //! use vofront_direct::translation::{align_translation, TranslationConfig};
-//! use vofront_direct::Plane;
+//! use vofront_image::Image;
 //! // A smooth pattern and the same pattern moved by (3, -2) pixels: I2(x + d) = I1(x).
 //! let f = |x: f32, y: f32| 128.0 + 50.0 * (x / 7.0).sin() * (y / 9.0).cos() + 30.0 * ((x + y) / 13.0).sin();
 //! let (w, h) = (160, 120);
 //! let grid = |dx: f32, dy: f32| -> Vec<f32> {
 //!     (0..w * h).map(|i| f((i % w) as f32 - dx, (i / w) as f32 - dy)).collect()
 //! };
-//! let img1 = Plane::new(w, h, grid(0.0, 0.0)).unwrap();
-//! let img2 = Plane::new(w, h, grid(3.0, -2.0)).unwrap();
+//! let img1 = Image::new(w, h, grid(0.0, 0.0)).unwrap();
+//! let img2 = Image::new(w, h, grid(3.0, -2.0)).unwrap();
 //! let fit = align_translation(&img1, &img2, &TranslationConfig::default()).unwrap();
 //! assert!((fit.d.x - 3.0).abs() < 0.05 && (fit.d.y + 2.0).abs() < 0.05, "{:?}", fit.d);
 //! ```
@@ -46,7 +46,9 @@ pub mod translation;
 pub mod warp2d;
 
 pub use error::DirectError;
-pub use plane::{Gradients, Plane, Pyramid};
+#[allow(deprecated)]
+pub use plane::Plane;
+pub use plane::{Gradients, Pyramid};
 pub use rgbd::{RgbdFrame, Undistorter};
 pub use se3::{
     align_se3, photometric_residual_map, InverseDepthPoint, Se3Config, Se3Reference, Se3Result,

@@ -1,21 +1,22 @@
-//! The image type of the direct methods: the image crate's `f32` image, its factor-2 pyramid,
-//! gradients and bilinear taps (see `vofront_image`), and the value-and-gradient interpolation
-//! of the aligners that sample the current image's gradients (SE(3), forward-additive
-//! translation).
+//! What the direct methods take from `vofront_image` (their images are
+//! [`vofront_image::Image<f32>`]: the factor-2 pyramid, gradients and bilinear taps), and the
+//! value-and-gradient interpolation of the aligners that sample the current image's gradients
+//! (SE(3), forward-additive translation).
 
 pub(crate) use vofront_image::Bilinear;
 pub use vofront_image::{Gradients, Pyramid};
 
-/// A row-major `f32` image (grey levels 0..255 for 8-bit content, metres for depth):
-/// [`vofront_image::Image<f32>`].
+/// The former name of [`vofront_image::Image<f32>`], kept for users' code.
+#[deprecated(note = "use vofront_image::Image<f32>")]
 pub type Plane = vofront_image::Image<f32>;
 
 /// Grey level and central-difference gradient of `img` at `(u, v)`, bilinearly interpolated
-/// from the four surrounding pixels (the same values as interpolating [`Plane::gradients`]),
-/// without building gradient planes. Needs `1 <= u, v` and `u <= w - 2`, `v <= h - 2`.
+/// from the four surrounding pixels (the same values as interpolating
+/// [`vofront_image::Image::gradients`]),
+/// without building gradient images. Needs `1 <= u, v` and `u <= w - 2`, `v <= h - 2`.
 #[inline]
 pub(crate) fn sample_with_gradient(img: &[f32], w: usize, h: usize, u: f32, v: f32) -> [f32; 3] {
-    // Top-left tap in [1, w - 3] so that the 4x4 neighbourhood stays inside the plane.
+    // Top-left tap in [1, w - 3] so that the 4x4 neighbourhood stays inside the image.
     let x0 = (u as usize).min(w - 3).max(1);
     let y0 = (v as usize).min(h - 3).max(1);
     interpolate_with_gradient(img, w, x0, y0, u - x0 as f32, v - y0 as f32)
@@ -84,7 +85,7 @@ mod tests {
                 100.0 + 40.0 * (0.7 * x).sin() * (0.45 * y).cos() + 3.0 * x - 2.0 * y
             })
             .collect();
-        let img = Plane::new(w, h, data).expect("valid plane");
+        let img = vofront_image::Image::new(w, h, data).expect("valid image");
         let g = img.gradients();
         // Interior points, the lowest and highest allowed coordinates included.
         let (hi_u, hi_v) = ((w - 2) as f32, (h - 2) as f32);

@@ -13,10 +13,10 @@
 //! sandwich `B^-1 M B^-1` for SE(3) (see [`crate::Se3Result::covariance`]).
 
 use nalgebra::Matrix6;
+use vofront_image::Image;
 use vofront_robust::quality::{block_rows, rms_of};
 use vofront_robust::{Convergence, Quality, QualityConfig, Reason, Support, Uncertainty};
 
-use crate::plane::Plane;
 use crate::warp2d::{Fit2d, WarpResult};
 
 /// Share of `var(I1) + var(I2)` above which a photometric residual variance is what two
@@ -27,8 +27,8 @@ pub const CHANCE_RESIDUAL_SHARE: f64 = 0.5;
 /// near 0.01).
 pub const FIT_RESIDUAL_SHARE: f64 = 0.1;
 
-/// Variance of a plane's finite values, grey levels^2 (0 for an empty plane).
-pub fn intensity_variance(p: &Plane) -> f64 {
+/// Variance of an image's finite values, grey levels^2 (0 for an empty image).
+pub fn intensity_variance(p: &Image<f32>) -> f64 {
     let (w, h) = p.size();
     let (mut n, mut sum, mut sum_sq) = (0usize, 0.0f64, 0.0f64);
     for v in (0..h).flat_map(|y| p.row(y)[..w].iter().copied()) {
@@ -65,7 +65,7 @@ const CHANCE_GRID: usize = 4;
 
 /// Mean squared difference `I1(x) - I2(x + d)` over a grid of `x` whose `x + d` falls inside
 /// `I2` (bilinear), `None` without overlap.
-fn mean_sq_difference(p1: &Plane, p2: &Plane, d: (f32, f32)) -> Option<f64> {
+fn mean_sq_difference(p1: &Image<f32>, p2: &Image<f32>, d: (f32, f32)) -> Option<f64> {
     let (w, h) = p1.size();
     let (mut sum, mut n) = (0.0f64, 0usize);
     for y in (0..h).step_by(CHANCE_GRID) {
@@ -83,7 +83,7 @@ fn mean_sq_difference(p1: &Plane, p2: &Plane, d: (f32, f32)) -> Option<f64> {
 /// The mean squared difference of `I1(x)` and `I2(x + d)` over its median at eight shifts of
 /// a quarter image (placements that carry no alignment): near 0 for an aligned pair, near 1
 /// for a shift no better than chance.
-pub fn shift_chance_share(p1: &Plane, p2: &Plane, d: (f64, f64)) -> f64 {
+pub fn shift_chance_share(p1: &Image<f32>, p2: &Image<f32>, d: (f64, f64)) -> f64 {
     let (w, h) = p1.size();
     let (qx, qy) = (w as f32 / 4.0, h as f32 / 4.0);
     let mut chance: Vec<f64> = [
@@ -124,7 +124,12 @@ fn share_flags(share: f64) -> Vec<Reason> {
 /// The verdict of a 2D shift `fit` of `p1` to `p2` ([`crate::align_translation`]): the chance
 /// test is [`shift_chance_share`] on the two images; `sigma` is the RMS residual, grey levels;
 /// the covariance that of `d`, pixels^2.
-pub(crate) fn shift_quality(fit: &Fit2d, p1: &Plane, p2: &Plane, cfg: &QualityConfig) -> Quality {
+pub(crate) fn shift_quality(
+    fit: &Fit2d,
+    p1: &Image<f32>,
+    p2: &Image<f32>,
+    cfg: &QualityConfig,
+) -> Quality {
     let (w, h) = p1.size();
     let image_pixels = w * h;
     let pixels = (fit.used_fraction * image_pixels as f64).round() as usize;
@@ -150,7 +155,12 @@ pub(crate) fn shift_quality(fit: &Fit2d, p1: &Plane, p2: &Plane, cfg: &QualityCo
 
 /// An affine or homography `fit` of `p1` to `p2` with its verdict: support out of the image's
 /// pixels, the chance test on `var(I1) + var(I2)`, the covariance of the geometric parameters.
-pub(crate) fn warp_quality(fit: Fit2d, p1: &Plane, p2: &Plane, cfg: &QualityConfig) -> WarpResult {
+pub(crate) fn warp_quality(
+    fit: Fit2d,
+    p1: &Image<f32>,
+    p2: &Image<f32>,
+    cfg: &QualityConfig,
+) -> WarpResult {
     let (w, h) = p1.size();
     let image_pixels = w * h;
     let variances = intensity_variance(p1) + intensity_variance(p2);

@@ -10,10 +10,9 @@ use std::borrow::Cow;
 use std::sync::Arc;
 
 use vofront_core::{Camera, Pinhole, UndistortMap};
-use vofront_image::Remap;
+use vofront_image::{Image, Remap};
 
 use crate::error::DirectError;
-use crate::plane::Plane;
 
 /// Smallest image side accepted for an RGB-D frame, pixels.
 pub const MIN_RGBD_SIDE: usize = 16;
@@ -40,12 +39,12 @@ impl Undistorter {
     }
 
     /// The pinhole image of `img` (bilinear, NaN where the source is outside).
-    pub fn undistort_image(&self, img: &Plane) -> Result<Plane, DirectError> {
+    pub fn undistort_image(&self, img: &Image<f32>) -> Result<Image<f32>, DirectError> {
         Ok(self.remap.bilinear(img, f32::NAN)?)
     }
 
     /// The pinhole depth map of `depth` (nearest neighbour, 0 where the source is outside).
-    pub fn undistort_depth(&self, depth: &Plane) -> Result<Plane, DirectError> {
+    pub fn undistort_depth(&self, depth: &Image<f32>) -> Result<Image<f32>, DirectError> {
         Ok(self.remap.nearest(depth, 0.0)?)
     }
 }
@@ -53,8 +52,8 @@ impl Undistorter {
 /// `img` in the pinhole geometry: remapped by `undistorter`, or borrowed as it is without one.
 pub(crate) fn pinhole_image<'a>(
     undistorter: Option<&Undistorter>,
-    img: &'a Plane,
-) -> Result<Cow<'a, Plane>, DirectError> {
+    img: &'a Image<f32>,
+) -> Result<Cow<'a, Image<f32>>, DirectError> {
     match undistorter {
         Some(u) => Ok(Cow::Owned(u.undistort_image(img)?)),
         None => Ok(Cow::Borrowed(img)),
@@ -69,9 +68,9 @@ pub(crate) fn pinhole_image<'a>(
 #[derive(Debug, Clone)]
 pub struct RgbdFrame {
     /// Grey levels, undistorted (NaN where unknown).
-    image: Plane,
+    image: Image<f32>,
     /// Depth `Z` in metres along the optical axis, undistorted; `0` or NaN = unknown.
-    depth: Plane,
+    depth: Image<f32>,
     /// Intrinsics of `image` and `depth`.
     pinhole: Pinhole,
     /// The remap applied to the inputs, reused for the current images (`None` without
@@ -85,7 +84,7 @@ impl RgbdFrame {
     ///
     /// Errors: [`DirectError::SizeMismatch`], [`DirectError::ImageTooSmall`],
     /// [`DirectError::Camera`], [`DirectError::NoValidDepth`].
-    pub fn new(image: Plane, depth: Plane, camera: &Camera) -> Result<Self, DirectError> {
+    pub fn new(image: Image<f32>, depth: Image<f32>, camera: &Camera) -> Result<Self, DirectError> {
         let undistorter = if camera.distortion.is_identity() {
             camera.validate()?;
             None
@@ -101,8 +100,8 @@ impl RgbdFrame {
 
     /// Like [`RgbdFrame::new`] but reusing a remap built once for the camera (a video stream).
     pub fn with_undistorter(
-        image: Plane,
-        depth: Plane,
+        image: Image<f32>,
+        depth: Image<f32>,
         pinhole: Pinhole,
         undistorter: Option<Arc<Undistorter>>,
     ) -> Result<Self, DirectError> {
@@ -125,12 +124,12 @@ impl RgbdFrame {
     }
 
     /// Grey levels, undistorted (NaN where unknown).
-    pub fn image(&self) -> &Plane {
+    pub fn image(&self) -> &Image<f32> {
         &self.image
     }
 
     /// Depth `Z` in metres along the optical axis, undistorted; `0` or NaN = unknown.
-    pub fn depth(&self) -> &Plane {
+    pub fn depth(&self) -> &Image<f32> {
         &self.depth
     }
 
@@ -146,7 +145,7 @@ impl RgbdFrame {
     }
 
     /// `img` (a current image from the same camera) brought to the pinhole geometry.
-    pub fn prepare_current(&self, img: &Plane) -> Result<Plane, DirectError> {
+    pub fn prepare_current(&self, img: &Image<f32>) -> Result<Image<f32>, DirectError> {
         self.image.check_same_size(img)?;
         Ok(pinhole_image(self.undistorter.as_deref(), img)?.into_owned())
     }

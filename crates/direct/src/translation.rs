@@ -9,10 +9,10 @@
 //! [`vofront_robust::SolveError::Degenerate`]; a flat image is [`DirectError::NoTexture`].
 
 use nalgebra::{Matrix2, Matrix3, Vector2};
+use vofront_image::Image;
 use vofront_robust::{Loss, Quality, QualityConfig};
 
 use crate::error::DirectError;
-use crate::plane::Plane;
 use crate::quality::shift_quality;
 use crate::warp2d::{align_2d, TranslationMethod, WarpConfig, WarpKind};
 
@@ -99,7 +99,8 @@ pub struct TranslationResult {
 /// Finds `d` with `I2(x + d) = I1(x)` (the content of `img1` moved by `d` in `img2`).
 ///
 /// ```
-/// use vofront_direct::{align_translation, Plane, TranslationConfig};
+/// use vofront_direct::{align_translation, TranslationConfig};
+/// use vofront_image::Image;
 /// let img = |dx: f32, dy: f32| {
 ///     let data = (0..96 * 80)
 ///         .map(|i| {
@@ -107,14 +108,14 @@ pub struct TranslationResult {
 ///             100.0 + 40.0 * (x * 0.3).sin() * (y * 0.25).cos() + 30.0 * ((x + y) * 0.17).sin()
 ///         })
 ///         .collect();
-///     Plane::new(96, 80, data).unwrap()
+///     Image::new(96, 80, data).unwrap()
 /// };
 /// let fit = align_translation(&img(0.0, 0.0), &img(1.3, -0.6), &TranslationConfig::default()).unwrap();
 /// assert!((fit.d.x - 1.3).abs() < 0.01 && (fit.d.y + 0.6).abs() < 0.01);
 /// ```
 pub fn align_translation(
-    img1: &Plane,
-    img2: &Plane,
+    img1: &Image<f32>,
+    img2: &Image<f32>,
     cfg: &TranslationConfig,
 ) -> Result<TranslationResult, DirectError> {
     let warp_cfg = WarpConfig {

@@ -7,15 +7,16 @@
 //! that blur is the same procedure through a radial-tangential lens of similar strength.
 
 use vofront_core::camera::{Camera, Distortion, KannalaBrandt, Lens, Pinhole};
-use vofront_direct::{Plane, Undistorter};
+use vofront_direct::Undistorter;
 use vofront_fixtures::scene::{pose_wc, Scene};
+use vofront_image::Image;
 
 const W: u32 = 320;
 const H: u32 = 240;
 
 /// Mean absolute difference between `a` and `b` over pixels finite in both, and the fraction
 /// of such pixels.
-fn mean_abs_difference(a: &Plane, b: &Plane) -> (f64, f64) {
+fn mean_abs_difference(a: &Image<f32>, b: &Image<f32>) -> (f64, f64) {
     let (sum, n) = a
         .data()
         .iter()
@@ -28,13 +29,13 @@ fn mean_abs_difference(a: &Plane, b: &Plane) -> (f64, f64) {
 }
 
 /// The room at a fixed pose through `camera`.
-fn render(camera: &Camera) -> Plane {
+fn render(camera: &Camera) -> Image<f32> {
     let t_wc = pose_wc([0.2, -0.1, 0.0], 0.1, -0.05, 0.02);
-    Plane::from_gray_f32(&Scene::box_room(11).render(camera, W, H, &t_wc).image)
+    Scene::box_room(11).render(camera, W, H, &t_wc).image
 }
 
 /// `image` undistorted by the remap of a camera with intrinsics `k` and lens `model_lens`.
-fn undistort(k: Pinhole, model_lens: Lens, image: &Plane) -> Plane {
+fn undistort(k: Pinhole, model_lens: Lens, image: &Image<f32>) -> Image<f32> {
     Undistorter::new(&Camera::new(k, model_lens), W as usize, H as usize)
         .unwrap()
         .undistort_image(image)

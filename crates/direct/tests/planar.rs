@@ -3,13 +3,14 @@
 use nalgebra::{Matrix3, Vector2};
 use proptest::prelude::*;
 use vofront_direct::{
-    align_affine, align_homography, align_translation, DirectError, Plane, TranslationConfig,
+    align_affine, align_homography, align_translation, DirectError, TranslationConfig,
     TranslationMethod, WarpConfig,
 };
 use vofront_fixtures::image2d::{
     add_gaussian_noise, brightness, gaussian_blur, similarity, textured_image, translation,
     warped_textured_image,
 };
+use vofront_image::Image;
 use vofront_robust::{Loss, SolveError};
 
 /// Noiseless sub-pixel shifts must be recovered to this, pixels (the brief's requirement).
@@ -21,13 +22,13 @@ const H: u32 = 240;
 
 /// A pair `I1`, `I2` with `I2(x + d) = I1(x)`, both blurred with sigma 1 (the texture's hard
 /// shape edges alias otherwise and bias any interpolating method).
-fn shifted_pair(seed: u64, dx: f64, dy: f64) -> (Plane, Plane) {
+fn shifted_pair(seed: u64, dx: f64, dy: f64) -> (Image<f32>, Image<f32>) {
     let i1 = gaussian_blur(&textured_image(W, H, seed), 1.0);
     let i2 = gaussian_blur(
         &warped_textured_image(W, H, seed, &translation(dx, dy)),
         1.0,
     );
-    (Plane::from_gray_f32(&i1), Plane::from_gray_f32(&i2))
+    (i1, i2)
 }
 
 fn error(d: Vector2<f64>, dx: f64, dy: f64) -> f64 {
@@ -80,16 +81,8 @@ fn zero_threshold_without_budget_uses_every_interior_pixel() {
 #[test]
 fn noisy_shift_is_recovered_and_covariance_is_consistent() {
     let (i1, i2) = shifted_pair(5, -3.3, 4.45);
-    let n1 = Plane::from_gray_f32(&add_gaussian_noise(
-        &image::ImageBuffer::from_raw(W, H, i1.data().to_vec()).unwrap(),
-        2.0,
-        1,
-    ));
-    let n2 = Plane::from_gray_f32(&add_gaussian_noise(
-        &image::ImageBuffer::from_raw(W, H, i2.data().to_vec()).unwrap(),
-        2.0,
-        2,
-    ));
+    let n1 = add_gaussian_noise(&i1, 2.0, 1);
+    let n2 = add_gaussian_noise(&i2, 2.0, 2);
     let fit = align_translation(&n1, &n2, &TranslationConfig::default()).unwrap();
     let e = error(fit.d, -3.3, 4.45);
     assert!(e < NOISY_TOLERANCE, "{:?} error {e}", fit.d);
@@ -103,7 +96,7 @@ fn brightness_change_needs_the_affine_brightness_model() {
     let i1 = gaussian_blur(&textured_image(W, H, 7), 1.0);
     let i2 = gaussian_blur(&warped_textured_image(W, H, 7, &translation(1.7, 0.8)), 1.0);
     let i2 = brightness(&i2, 1.3, -20.0);
-    let (p1, p2) = (Plane::from_gray_f32(&i1), Plane::from_gray_f32(&i2));
+    let (p1, p2) = (i1, i2);
     let on = align_translation(
         &p1,
         &p2,
@@ -140,13 +133,13 @@ fn brightness_change_needs_the_affine_brightness_model() {
 
 #[test]
 fn flat_image_is_no_texture_and_stripes_are_degenerate() {
-    let flat = Plane::filled(64, 48, 100.0);
+    let flat = Image::filled(64, 48, 100.0);
     assert!(matches!(
         align_translation(&flat, &flat, &TranslationConfig::default()),
         Err(DirectError::NoTexture { .. })
     ));
     // Vertical stripes: every gradient is horizontal (the aperture problem).
-    let stripes = Plane::new(
+    let stripes = Image::new(
         64,
         48,
         (0..64 * 48)
@@ -163,8 +156,8 @@ fn flat_image_is_no_texture_and_stripes_are_degenerate() {
 
 #[test]
 fn size_mismatch_is_an_error() {
-    let a = Plane::filled(64, 48, 1.0);
-    let b = Plane::filled(48, 64, 1.0);
+    let a = Image::filled(64, 48, 1.0);
+    let b = Image::filled(48, 64, 1.0);
     assert!(matches!(
         align_translation(&a, &b, &TranslationConfig::default()),
         Err(DirectError::SizeMismatch { .. })
@@ -180,13 +173,7 @@ fn homography_is_recovered() {
         loss: Loss::Huber(1.345),
         ..WarpConfig::default()
     };
-    let fit = align_homography(
-        &Plane::from_gray_f32(&i1),
-        &Plane::from_gray_f32(&i2),
-        &Matrix3::identity(),
-        &cfg,
-    )
-    .unwrap();
+    let fit = align_homography(&i1, &i2, &Matrix3::identity(), &cfg).unwrap();
     let worst = corner_error(&fit.h, &h_true);
     assert!(worst < 0.05, "corner error {worst} px, H = {}", fit.h);
 }
@@ -215,7 +202,7 @@ fn affine_warp_with_brightness_change_is_recovered() {
         1.2,
         10.0,
     );
-    let (p1, p2) = (Plane::from_gray_f32(&i1), Plane::from_gray_f32(&i2));
+    let (p1, p2) = (i1, i2);
     let on = WarpConfig {
         affine_brightness: true,
         ..WarpConfig::default()

@@ -3,13 +3,14 @@
 
 use nalgebra::{Isometry3, Matrix3};
 use vofront_direct::{
-    align_affine, align_se3, align_translation, Plane, RgbdFrame, Se3Config, Se3Reference,
+    align_affine, align_se3, align_translation, RgbdFrame, Se3Config, Se3Reference,
     TranslationConfig, WarpConfig,
 };
 use vofront_fixtures::image2d::{
     gaussian_blur, textured_image, translation, warped_textured_image,
 };
 use vofront_fixtures::scene::{default_camera, pose_wc, Scene};
+use vofront_image::Image;
 use vofront_robust::{QualityConfig, Reason, Verdict};
 
 const W: u32 = 320;
@@ -23,13 +24,13 @@ fn unreachable_pixels() -> QualityConfig {
     }
 }
 
-fn shifted_pair() -> (Plane, Plane) {
+fn shifted_pair() -> (Image<f32>, Image<f32>) {
     let i1 = gaussian_blur(&textured_image(W, H, 5), 1.0);
     let i2 = gaussian_blur(
         &warped_textured_image(W, H, 5, &translation(1.5, -0.75)),
         1.0,
     );
-    (Plane::from_gray_f32(&i1), Plane::from_gray_f32(&i2))
+    (i1, i2)
 }
 
 #[test]
@@ -80,13 +81,8 @@ fn se3_support_counts_against_the_reference_candidates() {
     let camera = default_camera();
     let first = room.render(&camera, W, H, &pose_wc([0.0; 3], 0.0, 0.0, 0.0));
     let second = room.render(&camera, W, H, &pose_wc([0.03, 0.0, 0.02], 0.01, 0.0, 0.0));
-    let frame = RgbdFrame::new(
-        Plane::from_gray_f32(&first.image),
-        Plane::from_gray_f32(&first.depth),
-        &camera,
-    )
-    .unwrap();
-    let current = Plane::from_gray_f32(&second.image);
+    let frame = RgbdFrame::new(first.image.clone(), first.depth.clone(), &camera).unwrap();
+    let current = second.image;
     let cfg = Se3Config::default();
     let prior = Isometry3::identity();
     // One-off alignment: support out of every pixel of the frame.

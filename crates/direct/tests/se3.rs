@@ -4,13 +4,14 @@ use nalgebra::{Isometry3, Vector2};
 use vofront_core::camera::Camera;
 use vofront_core::lie::rotation_angle_deg;
 use vofront_direct::{
-    align_se3, photometric_residual_map, DirectError, InverseDepthPoint, Plane, RgbdFrame,
-    Se3Config, Se3Reference,
+    align_se3, photometric_residual_map, DirectError, InverseDepthPoint, RgbdFrame, Se3Config,
+    Se3Reference,
 };
 use vofront_fixtures::image2d::{add_gaussian_noise, brightness, occlude_patches};
 use vofront_fixtures::scene::{
     default_camera, distorted_camera, pose_wc, rescaled_camera, Rendered, Scene,
 };
+use vofront_image::Image;
 use vofront_robust::Loss;
 
 /// Rotation error allowed on noiseless renders, degrees (the brief's requirement).
@@ -44,7 +45,13 @@ fn pair(camera: Camera) -> Pair {
 }
 
 fn median_depth(r: &Rendered) -> f64 {
-    let mut d: Vec<f32> = r.depth.iter().copied().filter(|z| *z > 0.0).collect();
+    let mut d: Vec<f32> = r
+        .depth
+        .data()
+        .iter()
+        .copied()
+        .filter(|z| *z > 0.0)
+        .collect();
     d.sort_by(f32::total_cmp);
     f64::from(d[d.len() / 2])
 }
@@ -73,12 +80,7 @@ fn assert_brightness(a: f64, b: f64, a_true: f64, b_true: f64) {
 }
 
 fn frame(p: &Pair) -> RgbdFrame {
-    RgbdFrame::new(
-        Plane::from_gray_f32(&p.first.image),
-        Plane::from_gray_f32(&p.first.depth),
-        &p.camera,
-    )
-    .unwrap()
+    RgbdFrame::new(p.first.image.clone(), p.first.depth.clone(), &p.camera).unwrap()
 }
 
 fn assert_accurate(est: &Isometry3<f64>, p: &Pair, what: &str) {
@@ -95,7 +97,7 @@ fn noiseless_motion_is_recovered_with_covariance_and_full_inliers() {
     let p = pair(rescaled_camera(&default_camera(), 0.5));
     let fit = align_se3(
         &frame(&p),
-        &Plane::from_gray_f32(&p.second.image),
+        &p.second.image,
         &Isometry3::identity(),
         &Se3Config::default(),
     )
@@ -107,14 +109,7 @@ fn noiseless_motion_is_recovered_with_covariance_and_full_inliers() {
     let c = fit.covariance.expect("a known covariance");
     assert!((0..6).all(|i| c[(i, i)] > 0.0 && c[(i, i)] < 1e-4), "{c}");
     // The residual map at the truth is small almost everywhere.
-    let map = photometric_residual_map(
-        &frame(&p),
-        &Plane::from_gray_f32(&p.second.image),
-        &p.truth,
-        1.0,
-        0.0,
-    )
-    .unwrap();
+    let map = photometric_residual_map(&frame(&p), &p.second.image, &p.truth, 1.0, 0.0).unwrap();
     let mut valid: Vec<f32> = map
         .data()
         .iter()
@@ -130,7 +125,7 @@ fn noiseless_motion_is_recovered_with_covariance_and_full_inliers() {
     // And large at a wrong pose.
     let wrong = photometric_residual_map(
         &frame(&p),
-        &Plane::from_gray_f32(&p.second.image),
+        &p.second.image,
         &Isometry3::identity(),
         1.0,
         0.0,
@@ -155,7 +150,7 @@ fn noiseless_motion_is_recovered_with_covariance_and_full_inliers() {
 #[test]
 fn stopping_below_the_noise_matches_full_convergence() {
     let p = pair(rescaled_camera(&default_camera(), 0.5));
-    let current = Plane::from_gray_f32(&add_gaussian_noise(&p.second.image, 3.0, 11));
+    let current = add_gaussian_noise(&p.second.image, 3.0, 11);
     let run = |min_step_sigmas, min_step| {
         let cfg = Se3Config {
             min_step_sigmas,
@@ -191,7 +186,7 @@ fn distorted_camera_is_handled_by_undistortion() {
     let p = pair(rescaled_camera(&distorted_camera(), 0.5));
     let fit = align_se3(
         &frame(&p),
-        &Plane::from_gray_f32(&p.second.image),
+        &p.second.image,
         &Isometry3::identity(),
         &Se3Config::default(),
     )
@@ -202,7 +197,7 @@ fn distorted_camera_is_handled_by_undistortion() {
 #[test]
 fn brightness_change_is_estimated() {
     let p = pair(rescaled_camera(&default_camera(), 0.5));
-    let current = Plane::from_gray_f32(&brightness(&p.second.image, 1.3, -20.0));
+    let current = brightness(&p.second.image, 1.3, -20.0);
     let fit = align_se3(
         &frame(&p),
         &current,
@@ -218,7 +213,7 @@ fn brightness_change_is_estimated() {
 fn occluding_patches_are_rejected_by_the_robust_loss() {
     let p = pair(rescaled_camera(&default_camera(), 0.5));
     let (occluded, _) = occlude_patches(&p.second.image, 0.2, 3);
-    let current = Plane::from_gray_f32(&occluded);
+    let current = occluded;
     let run = |loss| {
         let cfg = Se3Config {
             loss,
@@ -245,7 +240,7 @@ fn occluding_patches_are_rejected_by_the_robust_loss() {
 #[test]
 fn missing_depth_pixels_are_skipped() {
     let p = pair(rescaled_camera(&default_camera(), 0.5));
-    let mut depth = Plane::from_gray_f32(&p.first.depth);
+    let mut depth = p.first.depth.clone();
     for (i, z) in depth.data_mut().iter_mut().enumerate() {
         if i % 7 == 0 {
             *z = f32::NAN;
@@ -253,10 +248,10 @@ fn missing_depth_pixels_are_skipped() {
             *z = 0.0;
         }
     }
-    let reference = RgbdFrame::new(Plane::from_gray_f32(&p.first.image), depth, &p.camera).unwrap();
+    let reference = RgbdFrame::new(p.first.image.clone(), depth, &p.camera).unwrap();
     let fit = align_se3(
         &reference,
-        &Plane::from_gray_f32(&p.second.image),
+        &p.second.image,
         &Isometry3::identity(),
         &Se3Config::default(),
     )
@@ -267,14 +262,14 @@ fn missing_depth_pixels_are_skipped() {
 #[test]
 fn bad_inputs_are_typed_errors() {
     let cam = rescaled_camera(&default_camera(), 0.5);
-    let img = Plane::filled(64, 48, 100.0);
-    let depth = Plane::filled(64, 48, 2.0);
+    let img = Image::filled(64, 48, 100.0);
+    let depth = Image::filled(64, 48, 2.0);
     assert!(matches!(
-        RgbdFrame::new(img.clone(), Plane::filled(48, 64, 2.0), &cam),
+        RgbdFrame::new(img.clone(), Image::filled(48, 64, 2.0), &cam),
         Err(DirectError::SizeMismatch { .. })
     ));
     assert!(matches!(
-        RgbdFrame::new(img.clone(), Plane::filled(64, 48, 0.0), &cam),
+        RgbdFrame::new(img.clone(), Image::filled(64, 48, 0.0), &cam),
         Err(DirectError::NoValidDepth)
     ));
     let flat = RgbdFrame::new(img.clone(), depth, &cam).unwrap();
@@ -296,9 +291,13 @@ fn bad_inputs_are_typed_errors() {
         max_gain: 0.5,
         ..Se3Config::default()
     };
-    let current = Plane::from_gray_f32(&p.second.image);
     assert!(matches!(
-        align_se3(&frame(&p), &current, &Isometry3::identity(), &bad_gain),
+        align_se3(
+            &frame(&p),
+            &p.second.image,
+            &Isometry3::identity(),
+            &bad_gain
+        ),
         Err(DirectError::InvalidConfig(_))
     ));
 }
@@ -313,12 +312,7 @@ fn large_motions_converge_or_fail_loudly() {
     let room = Scene::box_room(5);
     let t_w1 = pose_wc([0.0, 0.0, 0.0], 0.0, 0.0, 0.0);
     let first = room.render(&camera, W, H, &t_w1);
-    let reference = RgbdFrame::new(
-        Plane::from_gray_f32(&first.image),
-        Plane::from_gray_f32(&first.depth),
-        &camera,
-    )
-    .unwrap();
+    let reference = RgbdFrame::new(first.image.clone(), first.depth.clone(), &camera).unwrap();
     let limit = TRANSLATION_TOLERANCE_PER_METRE * median_depth(&first);
     let motions = [
         ([0.12, 0.0, 0.0], 0.0, 0.0, 0.0),
@@ -338,7 +332,7 @@ fn large_motions_converge_or_fail_loudly() {
     for (position, yaw, pitch, roll) in motions {
         let t_w2 = pose_wc(position, yaw, pitch, roll);
         let truth = t_w2.inverse() * t_w1;
-        let current = Plane::from_gray_f32(&room.render(&camera, W, H, &t_w2).image);
+        let current = room.render(&camera, W, H, &t_w2).image;
         for (count, cfg) in converged.iter_mut().zip([Se3Config::default(), all_levels]) {
             if let Ok(fit) = align_se3(&reference, &current, &Isometry3::identity(), &cfg) {
                 let (rot, trans) = pose_error(&fit.pose, &truth);
@@ -364,8 +358,7 @@ fn large_motions_converge_or_fail_loudly() {
 #[test]
 fn sparse_inverse_depth_reference_is_accurate() {
     let p = pair(rescaled_camera(&default_camera(), 0.5));
-    let image = Plane::from_gray_f32(&p.first.image);
-    let depth = Plane::from_gray_f32(&p.first.depth);
+    let (image, depth) = (&p.first.image, &p.first.depth);
     let g = image.gradients();
     let mut points: Vec<InverseDepthPoint> = (0..image.data().len())
         .filter(|&i| {
@@ -396,17 +389,15 @@ fn sparse_inverse_depth_reference_is_accurate() {
     );
     let cfg = Se3Config::default();
     let pinhole = p.camera.pinhole;
-    let reference =
-        Se3Reference::from_inverse_depths(&image, pinhole, None, &points, &cfg).unwrap();
+    let reference = Se3Reference::from_inverse_depths(image, pinhole, None, &points, &cfg).unwrap();
     assert_eq!(reference.selected()[0], usable);
-    let current = Plane::from_gray_f32(&p.second.image);
     let fit = reference
-        .align(&current, &Isometry3::identity(), &cfg)
+        .align(&p.second.image, &Isometry3::identity(), &cfg)
         .unwrap();
     assert_accurate(&fit.pose, &p, "sparse inverse depths");
     let only_junk: Vec<InverseDepthPoint> = points[usable..].to_vec();
     assert!(matches!(
-        Se3Reference::from_inverse_depths(&image, pinhole, None, &only_junk, &cfg),
+        Se3Reference::from_inverse_depths(image, pinhole, None, &only_junk, &cfg),
         Err(DirectError::NoValidDepth)
     ));
 }

@@ -17,9 +17,10 @@
 use nalgebra::{Isometry3, Matrix3, Matrix6, Vector3};
 use vofront_core::camera::Camera;
 use vofront_core::lie::se3_log;
-use vofront_direct::{align_se3, Plane, RgbdFrame, Se3Config};
-use vofront_fixtures::image2d::{add_gaussian_noise, gaussian_blur, GrayF32};
+use vofront_direct::{align_se3, RgbdFrame, Se3Config};
+use vofront_fixtures::image2d::{add_gaussian_noise, gaussian_blur};
 use vofront_fixtures::scene::{default_camera, pose_wc, rescaled_camera, Scene};
+use vofront_image::Image;
 
 /// Noise draws per noise level.
 const SEEDS: u64 = 200;
@@ -45,9 +46,9 @@ const MOTIONS: [([f64; 3], f64, f64, f64); 4] = [
 /// rendered once and band-limited.
 struct Views {
     camera: Camera,
-    reference: GrayF32,
-    depth: Plane,
-    current: Vec<(GrayF32, Isometry3<f64>)>,
+    reference: Image<f32>,
+    depth: Image<f32>,
+    current: Vec<(Image<f32>, Isometry3<f64>)>,
 }
 
 fn views() -> Views {
@@ -69,7 +70,7 @@ fn views() -> Views {
     Views {
         camera,
         reference: gaussian_blur(&reference.image, ANTI_ALIAS_PX),
-        depth: Plane::from_gray_f32(&reference.depth),
+        depth: reference.depth.clone(),
         current,
     }
 }
@@ -88,12 +89,12 @@ fn calibration(v: &Views, sigma: f32) -> (f64, f64) {
     for seed in 0..SEEDS {
         let (image, truth) = &v.current[seed as usize % v.current.len()];
         let reference = RgbdFrame::new(
-            Plane::from_gray_f32(&add_gaussian_noise(&v.reference, sigma, 2 * seed)),
+            add_gaussian_noise(&v.reference, sigma, 2 * seed),
             v.depth.clone(),
             &v.camera,
         )
         .unwrap();
-        let current = Plane::from_gray_f32(&add_gaussian_noise(image, sigma, 2 * seed + 1));
+        let current = add_gaussian_noise(image, sigma, 2 * seed + 1);
         let fit = align_se3(&reference, &current, &Isometry3::identity(), &cfg)
             .unwrap_or_else(|e| panic!("sigma {sigma}, seed {seed}: {e}"));
         let cov = fit.covariance.expect("a known covariance");

@@ -7,17 +7,17 @@
 use std::path::PathBuf;
 
 use criterion::{criterion_group, criterion_main, BenchmarkId, Criterion};
-use image::GrayImage;
 use vofront_features::{knn2, Orb, OrbConfig};
 use vofront_fixtures::image2d::{textured_image, to_gray8};
+use vofront_image::Image;
 
 /// Bench images: the synthetic one, and the TUM frame when present.
-fn images() -> Vec<(&'static str, GrayImage)> {
+fn images() -> Vec<(&'static str, Image<u8>)> {
     let mut out = vec![("synthetic", to_gray8(&textured_image(640, 480, 1)))];
     let tum = PathBuf::from(env!("CARGO_MANIFEST_DIR"))
         .join("../../../shared/data/tum_fr1_xyz_pairs/case_1/img_prev.png");
     match image::open(&tum) {
-        Ok(img) => out.push(("tum_fr1", img.to_luma8())),
+        Ok(img) => out.push(("tum_fr1", Image::from_gray_owned(img.to_luma8()))),
         Err(_) => eprintln!("skipping the TUM image: {} not readable", tum.display()),
     }
     out

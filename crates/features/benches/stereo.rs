@@ -13,9 +13,11 @@ use vofront_fixtures::image2d::to_gray8;
 use vofront_image::Image;
 
 /// The KITTI pair when readable, else a rendered one.
-fn pair() -> (&'static str, image::GrayImage, image::GrayImage) {
+fn pair() -> (&'static str, Image<u8>, Image<u8>) {
     let root = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../../shared/data/kitti_06");
-    let read = |cam: &str| image::open(root.join(cam).join("000000.png")).map(|i| i.to_luma8());
+    let read = |cam: &str| {
+        image::open(root.join(cam).join("000000.png")).map(|i| Image::from_gray_owned(i.to_luma8()))
+    };
     match (read("image_0"), read("image_1")) {
         (Ok(l), Ok(r)) => ("kitti_06", l, r),
         _ => {
@@ -37,12 +39,11 @@ fn stereo(c: &mut Criterion) {
     let orb = Orb::new(OrbConfig::default()).expect("valid config");
     let fl = orb.detect_and_describe(&left).expect("ORB");
     let fr = orb.detect_and_describe(&right).expect("ORB");
-    let (il, ir) = (Image::from_gray(&left), Image::from_gray(&right));
     let cfg = StereoConfig::default();
-    let n = match_stereo(&fl, &fr, &il, &ir, &cfg).map_or(0, |m| m.len());
+    let n = match_stereo(&fl, &fr, &left, &right, &cfg).map_or(0, |m| m.len());
     eprintln!("{name}: {n} stereo matches of {} left features", fl.len());
     c.bench_function(&format!("match_stereo_{name}"), |b| {
-        b.iter(|| match_stereo(&fl, &fr, &il, &ir, &cfg).map(|m| m.len()))
+        b.iter(|| match_stereo(&fl, &fr, &left, &right, &cfg).map(|m| m.len()))
     });
 }
 

@@ -10,6 +10,7 @@ use std::io::Write;
 use std::time::Instant;
 
 use vofront_features::{knn2, match_descriptors, MatchConfig, Orb, OrbConfig};
+use vofront_image::Image;
 
 fn median_ms(reps: usize, mut f: impl FnMut()) -> f64 {
     let mut t: Vec<f64> = (0..reps)
@@ -28,8 +29,8 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     if args.len() < 2 {
         return Err("usage: orb_match IMG1 IMG2 [N] [OUT.csv] [ranked]".into());
     }
-    let i1 = image::open(&args[0])?.to_luma8();
-    let i2 = image::open(&args[1])?.to_luma8();
+    let i1 = Image::from_gray_owned(image::open(&args[0])?.to_luma8());
+    let i2 = Image::from_gray_owned(image::open(&args[1])?.to_luma8());
     let n = args.get(2).map_or(Ok(2000), |s| s.parse())?;
     let base = match args.get(4).map(String::as_str) {
         Some("ranked") => OrbConfig::ranked(),

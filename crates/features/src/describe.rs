@@ -10,7 +10,7 @@
 
 use crate::descriptor::Descriptor;
 use crate::pattern::BIT_PATTERN_31;
-use crate::pyramid::Plane;
+use vofront_image::Image;
 
 /// Radius in level pixels of the orientation disc (patch size 31).
 pub(crate) const HALF_PATCH: usize = 15;
@@ -43,8 +43,8 @@ fn disc_rows() -> [usize; HALF_PATCH + 1] {
 /// Orientations (radians) and steered BRIEF descriptors of the keypoints `points` (level
 /// pixels, at least [`MIN_BORDER`] px inside): orientation on `img`, BRIEF on `smoothed`.
 pub(crate) fn describe(
-    img: &Plane,
-    smoothed: &Plane,
+    img: &Image<u8>,
+    smoothed: &Image<u8>,
     points: &[(usize, usize)],
     umax: &[usize; HALF_PATCH + 1],
 ) -> (Vec<f32>, Vec<Descriptor>) {
@@ -62,8 +62,8 @@ pub(crate) fn describe(
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2")]
 unsafe fn describe_avx2(
-    img: &Plane,
-    smoothed: &Plane,
+    img: &Image<u8>,
+    smoothed: &Image<u8>,
     points: &[(usize, usize)],
     umax: &[usize; HALF_PATCH + 1],
 ) -> (Vec<f32>, Vec<Descriptor>) {
@@ -74,8 +74,8 @@ unsafe fn describe_avx2(
 /// as iterator folds would not be inlined).
 #[inline(always)]
 fn describe_generic(
-    img: &Plane,
-    smoothed: &Plane,
+    img: &Image<u8>,
+    smoothed: &Image<u8>,
     points: &[(usize, usize)],
     umax: &[usize; HALF_PATCH + 1],
 ) -> (Vec<f32>, Vec<Descriptor>) {
@@ -124,7 +124,7 @@ impl Disc {
 /// Orientation `atan2(m_01, m_10)` in radians of the keypoint at `(x, y)`, which must be at
 /// least `HALF_PATCH + 1` px inside the image (rows are read 16 px left and 15 px right).
 #[inline(always)]
-pub(crate) fn orientation(img: &Plane, x: usize, y: usize, disc: &Disc) -> f32 {
+pub(crate) fn orientation(img: &Image<u8>, x: usize, y: usize, disc: &Disc) -> f32 {
     let w = img.width();
     let row = |start: usize| -> [i32; DISC_ROW] {
         let s: &[u8; DISC_ROW] = img.data()[start..start + DISC_ROW]
@@ -154,7 +154,7 @@ pub(crate) fn orientation(img: &Plane, x: usize, y: usize, disc: &Disc) -> f32 {
 /// The steered BRIEF descriptor of the keypoint at `(x, y)` with orientation `angle` radians,
 /// on the smoothed level image; the keypoint must be at least [`MIN_BORDER`] px inside.
 #[inline(always)]
-pub(crate) fn brief(smoothed: &Plane, x: usize, y: usize, angle: f32) -> Descriptor {
+pub(crate) fn brief(smoothed: &Image<u8>, x: usize, y: usize, angle: f32) -> Descriptor {
     let w = smoothed.width() as i32;
     let d = smoothed.data();
     let centre = y * smoothed.width() + x;
@@ -286,7 +286,7 @@ mod tests {
                     (100 + 5 * (dx * x + dy * y)) as u8
                 })
                 .collect();
-            let img = Plane::new(w, w, data).unwrap();
+            let img = Image::new(w, w, data).unwrap();
             let a = orientation(&img, 20, 20, &Disc::new(&umax())).to_degrees();
             let diff = (a - want + 540.0).rem_euclid(360.0) - 180.0;
             assert!(diff.abs() < 0.5, "{a} vs {want}");

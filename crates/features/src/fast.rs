@@ -7,7 +7,7 @@
 //! grid cell (threshold fallback): `fast_threshold` everywhere, then `min_fast_threshold` in
 //! the cells where the first pass found nothing; then a 3x3 non-maximum suppression on the score.
 
-use crate::pyramid::Plane;
+use vofront_image::Image;
 
 /// Circle offsets `(dx, dy)`, clockwise from the top.
 const CIRCLE: [(isize, isize); 16] = [
@@ -227,7 +227,7 @@ fn quick_test_tail(centre: &[u8], ring: &[&[u8]; 16], x: usize, len: usize, t: u
 /// the score of every corner into `scores` (same layout as the image) and appending the
 /// pixel indices of the corners, in raster order, to `corners`.
 pub(crate) fn detect_into(
-    img: &Plane,
+    img: &Image<u8>,
     region: Rect,
     threshold: u8,
     scores: &mut [u16],
@@ -248,7 +248,7 @@ pub(crate) fn detect_into(
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2")]
 unsafe fn detect_into_avx2(
-    img: &Plane,
+    img: &Image<u8>,
     region: Rect,
     threshold: u8,
     scores: &mut [u16],
@@ -260,7 +260,7 @@ unsafe fn detect_into_avx2(
 /// The portable body of [`detect_into`]; inlined into each target-feature variant.
 #[inline(always)]
 fn detect_into_generic(
-    img: &Plane,
+    img: &Image<u8>,
     region: Rect,
     threshold: u8,
     scores: &mut [u16],
@@ -326,7 +326,12 @@ fn detect_into_generic(
 pub(crate) const CELL: usize = 32;
 
 /// FAST with per-cell threshold fallback and 3x3 non-maximum suppression over `region`.
-pub(crate) fn detect(img: &Plane, region: Rect, threshold: u8, min_threshold: u8) -> Vec<Corner> {
+pub(crate) fn detect(
+    img: &Image<u8>,
+    region: Rect,
+    threshold: u8,
+    min_threshold: u8,
+) -> Vec<Corner> {
     if region.x1 <= region.x0 || region.y1 <= region.y0 {
         return Vec::new();
     }
@@ -391,7 +396,7 @@ mod tests {
     use super::*;
 
     /// A dark square on a bright background: its 4 convex corners are FAST corners.
-    fn square(w: usize) -> Plane {
+    fn square(w: usize) -> Image<u8> {
         let data = (0..w * w)
             .map(|i| {
                 let (x, y) = (i % w, i / w);
@@ -402,7 +407,7 @@ mod tests {
                 }
             })
             .collect();
-        Plane::new(w, w, data).unwrap()
+        Image::new(w, w, data).unwrap()
     }
 
     #[test]
@@ -429,7 +434,7 @@ mod tests {
     fn threshold_and_score_follow_contrast() {
         // A single bright pixel of contrast 50 on a flat background: a corner below
         // threshold 50 only, scored 16 * 50 (all circle pixels darker by 50).
-        let mut img = Plane::new(9, 9, vec![100; 81]).unwrap();
+        let mut img = Image::new(9, 9, vec![100; 81]).unwrap();
         img.data_mut()[40] = 150;
         let region = Rect {
             x0: 4,
@@ -457,14 +462,14 @@ mod tests {
                 (s >> 24) as u8
             })
             .collect();
-        let img = Plane::new(w, h, data).unwrap();
+        let img = Image::new(w, h, data).unwrap();
         let region = Rect {
             x0: 3,
             y0: 3,
             x1: w - 3,
             y1: h - 3,
         };
-        let run = |f: fn(&Plane, Rect, u8, &mut [u16], &mut Vec<usize>)| {
+        let run = |f: fn(&Image<u8>, Rect, u8, &mut [u16], &mut Vec<usize>)| {
             let (mut scores, mut corners) = (vec![0u16; w * h], Vec::new());
             f(&img, region, 10, &mut scores, &mut corners);
             (scores, corners)
@@ -508,7 +513,7 @@ mod tests {
     #[test]
     fn an_arc_of_8_is_not_a_corner_but_9_is() {
         for (arc, want) in [(8usize, false), (9, true)] {
-            let mut img = Plane::new(9, 9, vec![100; 81]).unwrap();
+            let mut img = Image::new(9, 9, vec![100; 81]).unwrap();
             for &(dx, dy) in CIRCLE.iter().cycle().skip(5).take(arc) {
                 img.data_mut()[((4 + dy) * 9 + 4 + dx) as usize] = 200;
             }

@@ -6,7 +6,7 @@
 //! block size and comparable across pyramid levels.
 
 use crate::fast::Corner;
-use crate::pyramid::Plane;
+use vofront_image::Image;
 
 /// Harris `k`.
 pub(crate) const HARRIS_K: f32 = 0.04;
@@ -18,7 +18,7 @@ pub(crate) const HALF_BLOCK: usize = 3;
 const LANES: usize = 8;
 
 /// Harris responses of `corners` (each at least `HALF_BLOCK + 2` px inside), in order.
-pub(crate) fn responses(img: &Plane, corners: &[Corner]) -> Vec<f32> {
+pub(crate) fn responses(img: &Image<u8>, corners: &[Corner]) -> Vec<f32> {
     #[cfg(target_arch = "x86_64")]
     {
         if std::arch::is_x86_feature_detected!("avx2") {
@@ -32,7 +32,7 @@ pub(crate) fn responses(img: &Plane, corners: &[Corner]) -> Vec<f32> {
 /// [`responses`] with AVX2: the 7 block columns of a row in one 8 x 32-bit register.
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2")]
-unsafe fn responses_avx2(img: &Plane, corners: &[Corner]) -> Vec<f32> {
+unsafe fn responses_avx2(img: &Image<u8>, corners: &[Corner]) -> Vec<f32> {
     let mut out = Vec::with_capacity(corners.len());
     for c in corners {
         out.push(response_avx2(img, c.x as usize, c.y as usize));
@@ -43,7 +43,7 @@ unsafe fn responses_avx2(img: &Plane, corners: &[Corner]) -> Vec<f32> {
 /// [`response`] with AVX2 intrinsics, the same integer sums.
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2")]
-unsafe fn response_avx2(img: &Plane, x: usize, y: usize) -> f32 {
+unsafe fn response_avx2(img: &Image<u8>, x: usize, y: usize) -> f32 {
     use std::arch::x86_64::*;
     let w = img.width();
     // Every read is 8 bytes at row r in y - 4..=y + 4, column x - 4 + dx, dx in 0..=2: the
@@ -91,7 +91,7 @@ unsafe fn response_avx2(img: &Plane, x: usize, y: usize) -> f32 {
 
 /// The portable body of [`responses`]; inlined into each target-feature variant.
 #[inline(always)]
-fn responses_generic(img: &Plane, corners: &[Corner]) -> Vec<f32> {
+fn responses_generic(img: &Image<u8>, corners: &[Corner]) -> Vec<f32> {
     // A plain loop rather than `map().collect()`, whose fold would not be inlined here and
     // so would miss the target features.
     let mut out = Vec::with_capacity(corners.len());
@@ -104,7 +104,7 @@ fn responses_generic(img: &Plane, corners: &[Corner]) -> Vec<f32> {
 /// Harris response at `(x, y)`; the pixel must be at least `HALF_BLOCK + 2` px inside (the
 /// unused eighth lane reads one pixel further right).
 #[inline(always)]
-pub(crate) fn response(img: &Plane, x: usize, y: usize) -> f32 {
+pub(crate) fn response(img: &Image<u8>, x: usize, y: usize) -> f32 {
     let w = img.width();
     let d = img.data();
     // Lane i is block column xx = x - HALF_BLOCK + i; `taps(r, dx)` holds I(xx + dx, r).
@@ -147,7 +147,7 @@ mod tests {
     use super::*;
 
     /// The response straight from the definition: Sobel gradients pixel by pixel.
-    fn reference(img: &Plane, x: usize, y: usize) -> f32 {
+    fn reference(img: &Image<u8>, x: usize, y: usize) -> f32 {
         let p = |x: usize, y: usize| img.data()[y * img.width() + x] as f64;
         let (mut a, mut b, mut c) = (0.0, 0.0, 0.0);
         for yy in y - HALF_BLOCK..=y + HALF_BLOCK {
@@ -193,7 +193,7 @@ mod tests {
     fn corner_beats_edge_beats_flat() {
         let w = 30;
         let img = |f: &dyn Fn(usize, usize) -> bool| {
-            Plane::new(
+            Image::new(
                 w,
                 w,
                 (0..w * w)

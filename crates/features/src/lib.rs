@@ -15,12 +15,14 @@
 //! Positions are level-0 pixels, x right, y down, `(0, 0)` the centre of the top-left pixel.
 //!
 //! ```
-//! use image::GrayImage;
 //! use vofront_features::{match_descriptors, MatchConfig, Orb, OrbConfig};
+//! use vofront_image::Image;
 //! // A checkerboard of 12-px squares with a gradient: plenty of corners.
-//! let img = GrayImage::from_fn(160, 120, |x, y| {
-//!     image::Luma([if (x / 12 + y / 12) % 2 == 0 { 40 + (x / 2) as u8 } else { 210 - (y / 2) as u8 }])
-//! });
+//! let data = (0..120usize)
+//!     .flat_map(|y| (0..160usize).map(move |x| (x, y)))
+//!     .map(|(x, y)| if (x / 12 + y / 12) % 2 == 0 { 40 + (x / 2) as u8 } else { 210 - (y / 2) as u8 })
+//!     .collect();
+//! let img = Image::new(160, 120, data).unwrap();
 //! let orb = Orb::new(OrbConfig { n_features: 200, ..OrbConfig::default() }).unwrap();
 //! let f = orb.detect_and_describe(&img).unwrap();
 //! assert!(f.len() > 20 && f.len() <= 200);

@@ -1,14 +1,14 @@
 //! The ORB pipeline: pyramid, FAST-9 with threshold fallback, Harris ranking, quadtree
 //! spread, intensity-centroid orientation and steered BRIEF, levels in parallel with rayon.
 
-use image::GrayImage;
 use rayon::prelude::*;
+use vofront_image::Image;
 
 use crate::describe::{self, MIN_BORDER};
 use crate::distribute::distribute;
 use crate::fast::{self, Corner, Rect};
 use crate::harris;
-use crate::pyramid::{self, Level, Plane};
+use crate::pyramid::{self, Level};
 use crate::{Descriptor, FeatureError};
 
 /// ORB parameters. Level `l` is the image scaled by `1 / scale_factor^l`.
@@ -291,38 +291,36 @@ impl Orb {
     ///
     /// Images too small for the border, constant images and `n_features == 0` give an empty
     /// [`Features`]. Runs on the current rayon pool (levels in parallel).
-    pub fn detect_and_describe(&self, image: &GrayImage) -> Result<Features, FeatureError> {
+    pub fn detect_and_describe(&self, image: &Image<u8>) -> Result<Features, FeatureError> {
         let cfg = &self.cfg;
         let border = cfg.edge_threshold.max(MIN_BORDER);
-        let (w, h) = (image.width() as usize, image.height() as usize);
+        let (w, h) = image.size();
         if cfg.n_features == 0 || w < 2 * border + 1 || h < 2 * border + 1 {
             return Ok(Features::default());
         }
-        let base = Level {
-            image: Plane::from_gray(image),
-            scale: 1.0,
-            ratio: (1.0, 1.0),
-        };
         // Level 0 is about a third of the work: it is detected while the other levels are
         // being built, which are then detected in parallel.
         let (first, (above, detected_above)) = rayon::join(
-            || self.detect_level(&base.image, border),
+            || self.detect_level(image, border),
             || {
-                let above = pyramid::build_above(
-                    &base.image,
-                    cfg.scale_levels,
-                    cfg.scale_factor,
-                    2 * border + 1,
-                );
-                let detected: Vec<(Vec<Corner>, Plane)> = above
+                let above =
+                    pyramid::build_above(image, cfg.scale_levels, cfg.scale_factor, 2 * border + 1);
+                let detected: Vec<(Vec<Corner>, Image<u8>)> = above
                     .par_iter()
                     .map(|level| self.detect_level(&level.image, border))
                     .collect();
                 (above, detected)
             },
         );
-        let levels: Vec<Level> = std::iter::once(base).chain(above).collect();
-        let detected: Vec<(Vec<Corner>, Plane)> =
+        let base = LevelRef {
+            image,
+            scale: 1.0,
+            ratio: (1.0, 1.0),
+        };
+        let levels: Vec<LevelRef> = std::iter::once(base)
+            .chain(above.iter().map(LevelRef::from))
+            .collect();
+        let detected: Vec<(Vec<Corner>, Image<u8>)> =
             std::iter::once(first).chain(detected_above).collect();
         let areas: Vec<usize> = levels
             .iter()
@@ -345,7 +343,7 @@ impl Orb {
     }
 
     /// A level's FAST corners and, in parallel, its smoothed image for BRIEF.
-    fn detect_level(&self, img: &Plane, border: usize) -> (Vec<Corner>, Plane) {
+    fn detect_level(&self, img: &Image<u8>, border: usize) -> (Vec<Corner>, Image<u8>) {
         rayon::join(
             || self.candidates(img, border),
             || pyramid::gaussian_blur7(img),
@@ -353,7 +351,7 @@ impl Orb {
     }
 
     /// FAST corners with threshold fallback and non-maximum suppression inside the border.
-    fn candidates(&self, img: &Plane, border: usize) -> Vec<Corner> {
+    fn candidates(&self, img: &Image<u8>, border: usize) -> Vec<Corner> {
         let region = Rect {
             x0: border,
             y0: border,
@@ -374,9 +372,9 @@ impl Orb {
     fn describe_level(
         &self,
         l: u8,
-        level: &Level,
+        level: &LevelRef,
         corners: &[Corner],
-        smooth: &Plane,
+        smooth: &Image<u8>,
         border: usize,
         n: usize,
     ) -> Features {
@@ -396,7 +394,7 @@ impl Orb {
         let cand = Candidates {
             xs: corners.iter().map(|c| c.x as f32).collect(),
             ys: corners.iter().map(|c| c.y as f32).collect(),
-            responses: harris::responses(&level.image, &corners),
+            responses: harris::responses(level.image, &corners),
         };
         let region = (
             border as f32,
@@ -416,7 +414,7 @@ impl Orb {
             .iter()
             .map(|&i| (cand.xs[i] as usize, cand.ys[i] as usize))
             .collect();
-        let (angles, descriptors) = describe::describe(&level.image, smooth, &points, &self.umax);
+        let (angles, descriptors) = describe::describe(level.image, smooth, &points, &self.umax);
         Features {
             xs: keep
                 .iter()
@@ -431,6 +429,27 @@ impl Orb {
             angles,
             responses: keep.iter().map(|&i| cand.responses[i]).collect(),
             descriptors,
+        }
+    }
+}
+
+/// A pyramid level by reference: level 0 is the caller's image itself (no copy), the others are
+/// the resampled [`Level`]s.
+struct LevelRef<'a> {
+    /// The level's image.
+    image: &'a Image<u8>,
+    /// Nominal scale `scale_factor^level`.
+    scale: f32,
+    /// Level-0 pixels per level pixel along x and y.
+    ratio: (f32, f32),
+}
+
+impl<'a> From<&'a Level> for LevelRef<'a> {
+    fn from(level: &'a Level) -> Self {
+        Self {
+            image: &level.image,
+            scale: level.scale,
+            ratio: level.ratio,
         }
     }
 }

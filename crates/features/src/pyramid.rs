@@ -2,9 +2,7 @@
 //! 7x7 Gaussian smoothing used by BRIEF.
 
 pub(crate) use vofront_image::scale_pyramid::{build_above, ScaleLevel as Level};
-
-/// A contiguous 8-bit grey plane, row-major, stride = `width` (the image crate's type).
-pub(crate) type Plane = vofront_image::Image<u8>;
+use vofront_image::Image;
 
 /// 7-tap Gaussian, sigma = 2 px (as OpenCV's ORB), in 1/256 units: `round(256 g_i / sum g)`
 /// with `g_i = exp(-i^2 / 8)`, `i = -3..=3`, centre adjusted so the taps sum to 256.
@@ -13,7 +11,7 @@ const GAUSS7: [u32; 7] = [18, 34, 49, 54, 49, 34, 18];
 /// Separable 7x7 Gaussian blur (sigma 2 px), borders replicated. Both passes use 8-bit
 /// fixed-point taps; the horizontal result is rounded to 8 bits so the vertical pass
 /// accumulates in 16-bit lanes (at most 255 * 256).
-pub(crate) fn gaussian_blur7(src: &Plane) -> Plane {
+pub(crate) fn gaussian_blur7(src: &Image<u8>) -> Image<u8> {
     #[cfg(target_arch = "x86_64")]
     {
         if std::arch::is_x86_feature_detected!("avx2") {
@@ -27,13 +25,13 @@ pub(crate) fn gaussian_blur7(src: &Plane) -> Plane {
 /// [`gaussian_blur7`] compiled for AVX2.
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2")]
-unsafe fn gaussian_blur7_avx2(src: &Plane) -> Plane {
+unsafe fn gaussian_blur7_avx2(src: &Image<u8>) -> Image<u8> {
     gaussian_blur7_generic(src)
 }
 
 /// The portable body of [`gaussian_blur7`]; inlined into each target-feature variant.
 #[inline(always)]
-fn gaussian_blur7_generic(src: &Plane) -> Plane {
+fn gaussian_blur7_generic(src: &Image<u8>) -> Image<u8> {
     let (w, h) = src.size();
     let mut tmp = vec![0u8; w * h];
     let mut acc = vec![0u16; w];
@@ -51,7 +49,7 @@ fn gaussian_blur7_generic(src: &Plane) -> Plane {
         });
         vertical_row(&rows, out);
     }
-    Plane::new(w, h, data).expect("w * h blurred values")
+    Image::new(w, h, data).expect("w * h blurred values")
 }
 
 /// Vertical pass of one output row, `out[x] = round(sum_k GAUSS7[k] rows[k][x] / 256)`, in
@@ -118,7 +116,7 @@ fn horizontal_row(s: &[u8], t: &mut [u16]) {
 
 /// A `w x w` plane of pseudo-random grey levels (LCG from `seed`), for tests.
 #[cfg(test)]
-pub(crate) fn noise_plane(w: usize, seed: u32) -> Plane {
+pub(crate) fn noise_plane(w: usize, seed: u32) -> Image<u8> {
     let mut s = seed;
     let data = (0..w * w)
         .map(|_| {
@@ -126,19 +124,19 @@ pub(crate) fn noise_plane(w: usize, seed: u32) -> Plane {
             (s >> 24) as u8
         })
         .collect();
-    Plane::new(w, w, data).expect("w * w values")
+    Image::new(w, w, data).expect("w * w values")
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
 
-    fn plane(w: usize, h: usize, f: impl Fn(usize, usize) -> u8) -> Plane {
+    fn plane(w: usize, h: usize, f: impl Fn(usize, usize) -> u8) -> Image<u8> {
         let data = (0..h)
             .flat_map(|y| (0..w).map(move |x| (x, y)))
             .map(|(x, y)| f(x, y))
             .collect();
-        Plane::new(w, h, data).expect("w * h values")
+        Image::new(w, h, data).expect("w * h values")
     }
 
     #[test]

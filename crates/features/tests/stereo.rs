@@ -2,11 +2,10 @@
 //! left camera and by a right camera `b` metres to its right (same orientation and pinhole, so
 //! the pair is rectified), where every left pixel's true disparity is `f b / Z`.
 
-use image::GrayImage;
 use nalgebra::{Isometry3, Translation3};
 use vofront_features::{match_stereo, FeatureError, Features, Orb, OrbConfig, StereoConfig};
 use vofront_fixtures::driving::DrivingSequence;
-use vofront_fixtures::image2d::{brightness, to_gray8, GrayF32};
+use vofront_fixtures::image2d::{brightness, to_gray8};
 use vofront_image::Image;
 
 /// KITTI's baseline, metres.
@@ -15,7 +14,7 @@ const BASELINE: f64 = 0.54;
 struct Pair {
     left: Image<u8>,
     right: Image<u8>,
-    depth: GrayF32,
+    depth: Image<f32>,
     fx: f64,
 }
 
@@ -30,17 +29,16 @@ fn stereo_pair(seed: u64, i: usize, right_gain: f32) -> Pair {
     let left = drive.scene.render(&drive.camera, w, h, &t_wl);
     let right = drive.scene.render(&drive.camera, w, h, &t_wr);
     Pair {
-        left: Image::from_gray_owned(to_gray8(&left.image)),
-        right: Image::from_gray_owned(to_gray8(&brightness(&right.image, right_gain, 4.0))),
+        left: to_gray8(&left.image),
+        right: to_gray8(&brightness(&right.image, right_gain, 4.0)),
         depth: left.depth,
         fx: drive.camera.pinhole.fx,
     }
 }
 
 fn orb(image: &Image<u8>) -> Features {
-    let gray: GrayImage = image.to_gray().expect("a sized image");
     Orb::new(OrbConfig::default())
-        .and_then(|o| o.detect_and_describe(&gray))
+        .and_then(|o| o.detect_and_describe(image))
         .expect("ORB on a valid image")
 }
 
@@ -61,7 +59,7 @@ fn disparity_errors<'a>(
             for dx in -1..=1 {
                 let (u, v) = (x + dx, y + dy);
                 if u >= 0 && v >= 0 && u < w && v < h {
-                    zs.push(f64::from(pair.depth.get_pixel(u as u32, v as u32)[0]));
+                    zs.push(f64::from(pair.depth.at(u as usize, v as usize)));
                 }
             }
         }

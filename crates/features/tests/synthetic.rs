@@ -1,11 +1,11 @@
 //! ORB and matching on synthetic images with a known warp `I2(H x) = I1(x)`.
 
-use image::GrayImage;
 use nalgebra::Matrix3;
 use vofront_features::{match_descriptors, FeatureError, Features, MatchConfig, Orb, OrbConfig};
 use vofront_fixtures::image2d::{
     apply_homography, similarity, textured_image, to_gray8, warped_textured_image,
 };
+use vofront_image::Image;
 
 const W: u32 = 640;
 const H: u32 = 480;
@@ -32,7 +32,7 @@ fn orb(n: usize) -> Orb {
     .expect("default config is valid")
 }
 
-fn pair(h: &Matrix3<f64>, seed: u64) -> (GrayImage, GrayImage) {
+fn pair(h: &Matrix3<f64>, seed: u64) -> (Image<u8>, Image<u8>) {
     (
         to_gray8(&textured_image(W, H, seed)),
         to_gray8(&warped_textured_image(W, H, seed, h)),
@@ -194,10 +194,10 @@ fn keypoints_spread_over_the_image_and_respect_levels() {
 fn bad_input_gives_empty_results_or_typed_errors() {
     let orb = orb(500);
     for (w, h) in [(0, 0), (10, 10), (38, 300), (300, 38)] {
-        let f = orb.detect_and_describe(&GrayImage::new(w, h)).unwrap();
+        let f = orb.detect_and_describe(&Image::filled(w, h, 0)).unwrap();
         assert!(f.is_empty(), "{w}x{h}");
     }
-    let flat = GrayImage::from_pixel(200, 150, image::Luma([90]));
+    let flat = Image::filled(200, 150, 90u8);
     assert!(orb.detect_and_describe(&flat).unwrap().is_empty());
     let textured = to_gray8(&textured_image(200, 150, 2));
     let none = Orb::new(OrbConfig {

@@ -7,10 +7,6 @@ use image::{GrayImage, ImageBuffer, Luma};
 
 use crate::error::ImageError;
 
-/// A float grey image of the `image` crate (renders, metric depth maps): the one declaration of
-/// this alias in the workspace.
-pub type GrayF32 = ImageBuffer<Luma<f32>, Vec<f32>>;
-
 /// A row-major `width x height` image of `T` (`u8` grey levels, or `f32`: grey levels
 /// `0.0..=255.0` for 8-bit content, metres for depth, NaN for unknown).
 ///
@@ -207,8 +203,8 @@ impl Image<f32> {
         }
     }
 
-    /// The values of a float image of the `image` crate ([`GrayF32`]).
-    pub fn from_gray_f32(img: &GrayF32) -> Self {
+    /// The values of a float image of the `image` crate (`ImageBuffer<Luma<f32>, Vec<f32>>`).
+    pub fn from_gray_f32(img: &ImageBuffer<Luma<f32>, Vec<f32>>) -> Self {
         Self {
             width: img.width() as usize,
             height: img.height() as usize,
@@ -217,12 +213,12 @@ impl Image<f32> {
     }
 
     /// The `image` crate's float image of the same values; `None` when a side exceeds `u32`.
-    pub fn to_gray_f32(&self) -> Option<GrayF32> {
+    pub fn to_gray_f32(&self) -> Option<ImageBuffer<Luma<f32>, Vec<f32>>> {
         let (w, h) = (
             u32::try_from(self.width).ok()?,
             u32::try_from(self.height).ok()?,
         );
-        GrayF32::from_raw(w, h, self.data.clone())
+        ImageBuffer::from_raw(w, h, self.data.clone())
     }
 
     /// 8-bit grey levels: each value rounded and clamped to `0..=255`, NaN as 0.

@@ -32,7 +32,7 @@ pub mod remap;
 pub mod sample;
 pub mod scale_pyramid;
 
-pub use buffer::{GrayF32, Image};
+pub use buffer::Image;
 pub use corners::good_features_to_track;
 pub use error::ImageError;
 pub use filter::Gradients;

@@ -30,7 +30,7 @@ fn shifted(seed: u64, dx: f64, dy: f64) -> (Image<f32>, Image<f32>) {
         &warped_textured_image(W, H, seed, &translation(dx, dy)),
         1.0,
     );
-    (Image::from_gray_f32(&i1), Image::from_gray_f32(&i2))
+    (i1, i2)
 }
 
 /// Fraction tracked, the median and the 80th percentile of the error of the tracked points.

@@ -119,7 +119,7 @@ impl CameraArgs {
 
     /// Without any camera flag: the warning of [`principal_point_warning`] for the default
     /// camera and an image of `size`; `None` when a flag was given or the default fits.
-    pub fn default_camera_warning(&self, size: (u32, u32)) -> Option<String> {
+    pub fn default_camera_warning(&self, size: (usize, usize)) -> Option<String> {
         if self.is_given() {
             return None;
         }

@@ -11,7 +11,6 @@ use vofront::fixtures::scene::{default_camera, pose_wc, room_trajectory, Scene};
 use vofront::fixtures::tum::write_tum_sequence;
 use vofront::geometry::lie::{direction_angle_deg, rotation_angle_deg};
 use vofront::odometry::registry::{Session, TrackerKind, TrackerOptions};
-use vofront::pipeline::gray_plane;
 
 use vofront::two_view::Method;
 
@@ -78,8 +77,8 @@ pub fn run() -> Result<(), String> {
     let shift = (2.3, -1.7);
     let moved = warped_textured_image(640, 480, 7, &translation(shift.0, shift.1));
     let fit = align_translation(
-        &gray_plane(&to_gray8(&textured_image(640, 480, 7))),
-        &gray_plane(&to_gray8(&moved)),
+        &to_gray8(&textured_image(640, 480, 7)).to_f32(),
+        &to_gray8(&moved).to_f32(),
         &TranslationConfig::default(),
     )
     .map_err(|e| format!("direct 2D on the shifted texture: {e}"))?;

@@ -5,11 +5,10 @@
 
 use std::path::Path;
 
-use image::GrayImage;
 use vofront::direct::photometric_residual_map;
 use vofront::draw;
+use vofront::image::Image;
 use vofront::input::{load_depth, load_gray};
-use vofront::pipeline::gray_plane;
 use vofront::report::two_view::to_json;
 use vofront::robust::Quality;
 pub use vofront::two_view::{estimate, Inputs, Outcome, Status};
@@ -130,8 +129,8 @@ fn save(img: &image::RgbImage, dir: &Path, name: &str) -> Result<(), String> {
 }
 
 /// Absolute difference `|I1(x) - I2(x + d)|` (NaN where `x + d` leaves frame 2).
-fn shifted_difference(img1: &GrayImage, img2: &GrayImage, d: (f32, f32)) -> Vec<f32> {
-    let (p1, p2) = (gray_plane(img1), gray_plane(img2));
+fn shifted_difference(img1: &Image<u8>, img2: &Image<u8>, d: (f32, f32)) -> Vec<f32> {
+    let (p1, p2) = (img1.to_f32(), img2.to_f32());
     let (w, h) = p1.size();
     (0..h)
         .flat_map(|y| (0..w).map(move |x| (x, y)))
@@ -196,14 +195,14 @@ pub fn write_pictures(dir: &Path, inputs: &Inputs, outcome: &Outcome) -> Result<
         save(&draw::with_caption(&picture, &caption), dir, "matches.png")?;
     }
     if let Some(Ok((d, _))) = &outcome.translation {
-        let (w, h) = inputs.img1.dimensions();
+        let (w, h) = (inputs.img1.width() as u32, inputs.img1.height() as u32);
         let before = shifted_difference(&inputs.img1, &inputs.img2, (0.0, 0.0));
         let after = shifted_difference(&inputs.img1, &inputs.img2, (d.d.x as f32, d.d.y as f32));
         save(&draw::heat(w, h, &before, 64.0), dir, "diff_before.png")?;
         save(&draw::heat(w, h, &after, 64.0), dir, "diff_after.png")?;
     }
     if let (Some(Ok((s, _))), Some(reference)) = (&outcome.se3, &outcome.se3_reference) {
-        let map = photometric_residual_map(reference, &gray_plane(&inputs.img2), &s.pose, s.a, s.b)
+        let map = photometric_residual_map(reference, &inputs.img2.to_f32(), &s.pose, s.a, s.b)
             .map_err(|e| e.to_string())?;
         let (w, h) = map.size();
         save(
@@ -224,7 +223,7 @@ pub fn write_pictures(dir: &Path, inputs: &Inputs, outcome: &Outcome) -> Result<
 pub fn run(args: &TwoViewArgs) -> Result<Status, String> {
     let camera = args.camera.camera()?;
     let img1 = load_gray(&args.img1).map_err(|e| e.to_string())?;
-    if let Some(warning) = args.camera.default_camera_warning(img1.dimensions()) {
+    if let Some(warning) = args.camera.default_camera_warning(img1.size()) {
         eprintln!("vofront: warning: {warning}");
     }
     let img2 = load_gray(&args.img2).map_err(|e| e.to_string())?;

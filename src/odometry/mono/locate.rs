@@ -108,7 +108,7 @@ impl MonoTracker {
         waiting: &Waiting<Features>,
         t_w1: &Isometry3<f64>,
         now: (usize, &Isometry3<f64>),
-        size: (u32, u32),
+        size: (usize, usize),
     ) -> Vec<(usize, FrameEstimate)> {
         let scale_factor = self.cfg.orb.scale_factor;
         waiting.locate(t_w1, now, |features, predicted, start| {

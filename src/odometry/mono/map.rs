@@ -209,7 +209,7 @@ impl LocalMap {
         &mut self,
         camera: &Camera,
         t_cw: &Isometry3<f64>,
-        size: (u32, u32),
+        size: (usize, usize),
         scale_factor: f32,
     ) -> (Features, Vec<Option<Point3<f64>>>, Vec<PointId>) {
         let (query, positions, ids) = self.project_points(camera, t_cw, size, scale_factor);
@@ -226,7 +226,7 @@ impl LocalMap {
         &self,
         camera: &Camera,
         t_cw: &Isometry3<f64>,
-        (width, height): (u32, u32),
+        (width, height): (usize, usize),
         scale_factor: f32,
     ) -> (Features, Vec<Option<Point3<f64>>>, Vec<PointId>) {
         let centre = t_cw.inverse() * Point3::origin();

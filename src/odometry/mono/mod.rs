@@ -191,7 +191,7 @@ impl MonoTracker {
         mut map: LocalMap,
         first_residual: Option<f64>,
         current: Features,
-        size: (u32, u32),
+        size: (usize, usize),
         predicted: Isometry3<f64>,
         start: Instant,
     ) -> FrameEstimate {
@@ -379,7 +379,7 @@ impl MonoTracker {
     fn relocalised(
         &mut self,
         current: &Features,
-        size: (u32, u32),
+        size: (usize, usize),
         predicted: Isometry3<f64>,
     ) -> Option<LocalMap> {
         let scale_factor = self.cfg.orb.scale_factor;
@@ -445,8 +445,8 @@ impl MonoTracker {
             return FrameEstimate::lost(predicted, why, start);
         }
         if !tracking {
-            if let Some(map) = self.relocalised(&current, frame.image().dimensions(), predicted) {
-                let size = frame.image().dimensions();
+            if let Some(map) = self.relocalised(&current, frame.image().size(), predicted) {
+                let size = frame.image().size();
                 let estimate = self.track_map(map, None, current, size, predicted, start);
                 return FrameEstimate {
                     message: Some("relocalised against the lost map (its scale kept)".into()),
@@ -483,7 +483,7 @@ impl MonoTracker {
                             .start_map(map, &t_wc, now - since, quality, start)
                             .judged(pose_quality);
                         if let State::Tracking { map, .. } = &self.state {
-                            let size = frame.image().dimensions();
+                            let size = frame.image().size();
                             let at = (now, &estimate.pose_wc);
                             let revised = self.locate_waited(map, &waiting, &t_wc, at, size);
                             self.late.hand_over(revised);
@@ -511,7 +511,7 @@ impl MonoTracker {
                 map,
                 first_residual,
             } => {
-                let size = frame.image().dimensions();
+                let size = frame.image().size();
                 self.track_map(map, first_residual, current, size, predicted, start)
             }
         }

@@ -21,11 +21,12 @@ use std::sync::Arc;
 
 use nalgebra::{Isometry3, Matrix6, SVector, Vector3};
 use rayon::prelude::*;
+use vofront_image::Image;
 use vofront_robust::{sandwich_covariance, Convergence, Loss, Quality, QualityConfig};
 
 use crate::error::DirectError;
 use crate::lm::{run_level, LevelProblem, LmSettings, SERIAL_MAX};
-use crate::plane::{Bilinear, Plane};
+use crate::plane::Bilinear;
 use crate::quality::{intensity_variance, se3_quality, Se3Stats};
 use crate::rgbd::{pinhole_image, RgbdFrame, Undistorter};
 
@@ -223,7 +224,7 @@ impl Se3Reference {
     /// is) starting from `prior` (`T_cur_ref`, e.g. from a motion model; identity if unknown).
     pub fn align(
         &self,
-        current: &Plane,
+        current: &Image<f32>,
         prior: &Isometry3<f64>,
         cfg: &Se3Config,
     ) -> Result<Se3Result, DirectError> {
@@ -360,7 +361,8 @@ impl Se3Reference {
 ///
 /// ```
 /// use nalgebra::{Isometry3, Translation3, UnitQuaternion};
-/// use vofront_direct::{align_se3, Plane, RgbdFrame, Se3Config};
+/// use vofront_direct::{align_se3, RgbdFrame, Se3Config};
+/// use vofront_image::Image;
 /// use vofront_core::{Camera, Pinhole};
 /// // A textured fronto-parallel wall 2 m away, seen before and after a 2 cm sideways move.
 /// let cam = Camera::pinhole(Pinhole::new(100.0, 100.0, 39.5, 29.5).unwrap());
@@ -372,9 +374,9 @@ impl Se3Reference {
 ///             100.0 + 50.0 * (x * 20.0).sin() * (y * 17.0).cos() + 30.0 * ((x - y) * 11.0).sin()
 ///         })
 ///         .collect();
-///     Plane::new(80, 60, data).unwrap()
+///     Image::new(80, 60, data).unwrap()
 /// };
-/// let depth = Plane::filled(80, 60, 2.0);
+/// let depth = Image::filled(80, 60, 2.0);
 /// let reference = RgbdFrame::new(wall(0.0), depth, &cam).unwrap();
 /// let fit = align_se3(&reference, &wall(0.02), &Isometry3::identity(), &Se3Config::default()).unwrap();
 /// // The camera moved by +2 cm in x, so reference points move by -2 cm in the current frame.
@@ -382,7 +384,7 @@ impl Se3Reference {
 /// ```
 pub fn align_se3(
     reference: &RgbdFrame,
-    current: &Plane,
+    current: &Image<f32>,
     prior: &Isometry3<f64>,
     cfg: &Se3Config,
 ) -> Result<Se3Result, DirectError> {
@@ -398,11 +400,11 @@ pub fn align_se3(
 /// `reference`), NaN where the depth is invalid or the warp leaves the current image.
 pub fn photometric_residual_map(
     reference: &RgbdFrame,
-    current: &Plane,
+    current: &Image<f32>,
     pose: &Isometry3<f64>,
     a: f64,
     b: f64,
-) -> Result<Plane, DirectError> {
+) -> Result<Image<f32>, DirectError> {
     reference.image().check_same_size(current)?;
     let current = pinhole_image(reference.undistorter().map(AsRef::as_ref), current)?;
     let (w, h) = current.size();
@@ -414,7 +416,7 @@ pub fn photometric_residual_map(
         .cast::<f32>();
     let t = pose.translation.vector.cast::<f32>();
     let (fx, fy, cx, cy) = (k.fx as f32, k.fy as f32, k.cx as f32, k.cy as f32);
-    let mut out = Plane::filled(w, h, f32::NAN);
+    let mut out = Image::filled(w, h, f32::NAN);
     out.data_mut()
         .par_chunks_mut(w)
         .enumerate()

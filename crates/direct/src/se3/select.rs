@@ -7,9 +7,9 @@
 use rayon::prelude::*;
 
 use vofront_core::Pinhole;
+use vofront_image::Image;
 
 use super::Se3Config;
-use crate::plane::Plane;
 
 /// Selected reference pixels of one level, structure of arrays.
 #[derive(Debug, Clone, Default)]
@@ -58,8 +58,8 @@ pub(super) fn level_intrinsics(p: &Pinhole, level: usize) -> [f32; 4] {
 
 /// Pixels of one level: per grid cell, the largest gradient with a valid depth.
 pub(super) fn select_level(
-    img: &Plane,
-    depth0: &Plane,
+    img: &Image<f32>,
+    depth0: &Image<f32>,
     step: usize,
     k: [f32; 4],
     cfg: &Se3Config,
@@ -86,7 +86,7 @@ pub(super) fn select_level(
             let mut g2 = vec![0f32; w];
             for y in cy..(cy + cell).min(h - 1) {
                 let (up, row, down) = (img.row(y - 1), img.row(y), img.row(y + 1));
-                // Central differences, as in `Plane::gradients`; g2[x] for x in 1..w-1.
+                // Central differences, as in `Image<f32>::gradients`; g2[x] for x in 1..w-1.
                 for (((o, (r, l)), d), u) in g2[1..w - 1]
                     .iter_mut()
                     .zip(row[2..].iter().zip(&row[..w - 2]))

@@ -10,11 +10,11 @@ use std::sync::Arc;
 
 use nalgebra::Vector2;
 use vofront_core::Pinhole;
+use vofront_image::Image;
 
 use super::select::{level_intrinsics, RefLevel};
 use super::{Se3Config, Se3Reference, MIN_LEVEL_SIDE};
 use crate::error::DirectError;
-use crate::plane::Plane;
 use crate::quality::intensity_variance;
 use crate::rgbd::{pinhole_image, Undistorter, MIN_RGBD_SIDE};
 
@@ -41,7 +41,8 @@ impl Se3Reference {
     ///
     /// ```
     /// use nalgebra::{Isometry3, Vector2};
-    /// use vofront_direct::{InverseDepthPoint, Plane, Se3Config, Se3Reference};
+    /// use vofront_direct::{InverseDepthPoint, Se3Config, Se3Reference};
+    /// use vofront_image::Image;
     /// use vofront_core::Pinhole;
     /// // A textured wall 2 m away; every 3rd pixel becomes a reference point.
     /// let wall = |dx: f32| {
@@ -52,7 +53,7 @@ impl Se3Reference {
     ///             100.0 + 50.0 * (x * 20.0).sin() * (y * 17.0).cos() + 30.0 * ((x - y) * 11.0).sin()
     ///         })
     ///         .collect();
-    ///     Plane::new(80, 60, data).unwrap()
+    ///     Image::new(80, 60, data).unwrap()
     /// };
     /// let points: Vec<InverseDepthPoint> = (0..80 * 60)
     ///     .step_by(3)
@@ -68,7 +69,7 @@ impl Se3Reference {
     /// assert!((fit.pose.translation.x + 0.02).abs() < 1e-3, "{}", fit.pose.translation.x);
     /// ```
     pub fn from_inverse_depths(
-        image: &Plane,
+        image: &Image<f32>,
         pinhole: Pinhole,
         undistorter: Option<Arc<Undistorter>>,
         points: &[InverseDepthPoint],

@@ -12,7 +12,7 @@
 //! a grad I1(x) dW/d delta (x)` (valid at convergence, where `I2 o W = a I1 + b`), computed once
 //! per level; `d r / d a = -I1(x)`, `d r / d b = -1`. For translation a forward-additive variant
 //! samples `grad I2` at `x + d` instead (exact Jacobian; value and gradient interpolated
-//! together from the 4x4 neighbourhood in `I2`, no gradient planes, so the pixels within one
+//! together from the 4x4 neighbourhood in `I2`, no gradient images, so the pixels within one
 //! pixel of the border are invalid). Steps are damped Gauss-Newton on Huber (by default) IRLS
 //! weights (module `lm`).
 //!
@@ -20,11 +20,12 @@
 
 use nalgebra::{DMatrix, Matrix3, SVector};
 use rayon::prelude::*;
+use vofront_image::Image;
 use vofront_robust::{Convergence, Loss, NormalEquations, QualityConfig};
 
 use crate::error::DirectError;
 use crate::lm::{accumulate, run_level, LevelProblem, LmSettings, CHUNK, SERIAL_MAX};
-use crate::plane::{interpolate_with_gradient, Bilinear, Plane, Pyramid};
+use crate::plane::{interpolate_with_gradient, Bilinear, Pyramid};
 use crate::quality::warp_quality;
 
 mod result;
@@ -108,7 +109,7 @@ pub struct WarpConfig {
     pub affine_brightness: bool,
     /// Largest acceptable Jacobi-scaled condition number of the normal equations.
     pub max_condition: f64,
-    /// Blur both images with [`Plane::blur`] (sigma 1 pixel) first: the bilinear interpolant
+    /// Blur both images with [`Image<f32>::blur`] (sigma 1 pixel) first: the bilinear interpolant
     /// and the central-difference gradients then agree, which removes a bias of a few
     /// hundredths of a pixel on sharp real images.
     pub presmooth: bool,
@@ -212,9 +213,9 @@ fn jacobian_row<const M: usize>(
 struct Level2d<'a> {
     kind: WarpKind,
     reference: &'a RefPixels,
-    target: &'a Plane,
+    target: &'a Image<f32>,
     /// Forward-additive translation: the Jacobian from the target's gradients at the warped
-    /// pixels, interpolated from the target's values (no gradient planes).
+    /// pixels, interpolated from the target's values (no gradient images).
     forward: bool,
     residuals: Vec<f32>,
     /// Target gradients sampled at the warped pixels (forward-additive only).
@@ -322,7 +323,7 @@ impl<const M: usize> LevelProblem<M> for Level2d<'_> {
     }
 }
 
-/// Bilinear taps of warped reference pixels in a `w x h` target plane.
+/// Bilinear taps of warped reference pixels in a `w x h` target image.
 #[derive(Debug, Clone, Copy)]
 struct WarpTaps {
     h: Matrix3<f32>,
@@ -348,7 +349,7 @@ impl WarpTaps {
     }
 
     /// For a translation `t`: the top-left tap `(x0, y0)` of `(x, y) + t`; `None` unless the
-    /// four taps are at least `border` pixels inside the plane (and for the other warps).
+    /// four taps are at least `border` pixels inside the image (and for the other warps).
     #[inline(always)]
     fn top_left(&self, x: f32, y: f32, border: isize) -> Option<(usize, usize)> {
         let (ox, oy, _, _) = self.shift?;
@@ -358,7 +359,7 @@ impl WarpTaps {
         inside.then_some((xi as usize, yi as usize))
     }
 
-    /// Taps at `H (x, y, 1)`; `None` outside the plane.
+    /// Taps at `H (x, y, 1)`; `None` outside the image.
     #[inline(always)]
     fn at(&self, x: f32, y: f32) -> Option<Bilinear> {
         let (w, h_px, h) = (self.w, self.h_px, &self.h);
@@ -396,8 +397,8 @@ fn rescale(h: &Matrix3<f64>, f: f64) -> Matrix3<f64> {
 /// Coarse-to-fine robust alignment of `img2` to `img1` for `kind` with `M = k + 2` parameters.
 pub(crate) fn align_2d<const M: usize>(
     kind: WarpKind,
-    img1: &Plane,
-    img2: &Plane,
+    img1: &Image<f32>,
+    img2: &Image<f32>,
     initial: &Matrix3<f64>,
     cfg: &WarpConfig,
     forward_additive: bool,
@@ -540,7 +541,8 @@ pub(crate) fn align_2d<const M: usize>(
 ///
 /// ```
 /// use nalgebra::Matrix3;
-/// use vofront_direct::{align_affine, Plane, WarpConfig};
+/// use vofront_direct::{align_affine, WarpConfig};
+/// use vofront_image::Image;
 /// let img = |dx: f32| {
 ///     let data = (0..64 * 64)
 ///         .map(|i| {
@@ -548,14 +550,14 @@ pub(crate) fn align_2d<const M: usize>(
 ///             100.0 + 40.0 * (x * 0.3).sin() * (y * 0.25).cos() + 30.0 * ((x + y) * 0.17).sin()
 ///         })
 ///         .collect();
-///     Plane::new(64, 64, data).unwrap()
+///     Image::new(64, 64, data).unwrap()
 /// };
 /// let fit = align_affine(&img(0.0), &img(0.7), &Matrix3::identity(), &WarpConfig::default()).unwrap();
 /// assert!((fit.h[(0, 2)] - 0.7).abs() < 0.05);
 /// ```
 pub fn align_affine(
-    img1: &Plane,
-    img2: &Plane,
+    img1: &Image<f32>,
+    img2: &Image<f32>,
     initial: &Matrix3<f64>,
     cfg: &WarpConfig,
 ) -> Result<WarpResult, DirectError> {
@@ -566,8 +568,8 @@ pub fn align_affine(
 /// Homography `I2(H x) = a I1(x) + b` from the initial guess `initial` (the identity when
 /// unknown); `H` is returned with `H[2][2] = 1`.
 pub fn align_homography(
-    img1: &Plane,
-    img2: &Plane,
+    img1: &Image<f32>,
+    img2: &Image<f32>,
     initial: &Matrix3<f64>,
     cfg: &WarpConfig,
 ) -> Result<WarpResult, DirectError> {

@@ -4,7 +4,7 @@
 
 use nalgebra::{Matrix3, Vector3};
 
-use crate::plane::Plane;
+use vofront_image::Image;
 
 /// Reference pixels of one level, structure of arrays.
 #[derive(Debug, Default)]
@@ -22,7 +22,7 @@ impl RefPixels {
     /// gradients (about `max_pixels`: the threshold is raised to the matching quantile of every
     /// 8th pixel's squared gradient), before `keep` is asked.
     pub(super) fn select(
-        img: &Plane,
+        img: &Image<f32>,
         threshold: f32,
         max_pixels: usize,
         keep: impl Fn(f32, f32) -> bool,
@@ -112,7 +112,7 @@ mod tests {
     #[test]
     fn maps_inside_keeps_the_pixels_mapped_inside_the_margin() {
         let data = (0..20 * 10).map(|i| ((i * 37) % 101) as f32).collect();
-        let img = Plane::new(20, 10, data).unwrap();
+        let img = Image::new(20, 10, data).unwrap();
         let all = rows(&RefPixels::select(&img, 0.0, 0, |_, _| true));
         let shift = Matrix3::new(1.0, 0.0, 3.5, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0);
         let kept = rows(&RefPixels::select(
