@@ -357,19 +357,28 @@ fn parse_kitti_poses(text: &str, path: &Path) -> Result<Vec<Isometry3<f64>>, Tra
                 ));
             }
             let v = parse_numbers(&fields).map_err(|m| err(line, m))?;
-            let r = Matrix3::new(v[0], v[1], v[2], v[4], v[5], v[6], v[8], v[9], v[10]);
-            if (r.transpose() * r - Matrix3::identity()).norm() > ROTATION_ORTHONORMALITY_TOLERANCE
-                || r.determinant() <= 0.0
-            {
-                return Err(err(line, "the 3x3 block is not a rotation".into()));
-            }
-            let q = UnitQuaternion::from_rotation_matrix(&Rotation3::from_matrix_unchecked(r));
-            Ok(Isometry3::from_parts(
-                Translation3::new(v[3], v[7], v[11]),
-                q,
-            ))
+            kitti_pose(&v).map_err(|m| err(line, m))
         })
         .collect()
+}
+
+/// The pose `T_wc` of a KITTI row: 12 numbers, the row-major 3x4 `[R | t]`; an error message
+/// when there are not 12 finite numbers or the 3x3 block is not a rotation (to 1e-3).
+pub fn kitti_pose(v: &[f64]) -> Result<Isometry3<f64>, String> {
+    if v.len() != 12 || !v.iter().all(|x| x.is_finite()) {
+        return Err(format!("expected 12 finite numbers, found {}", v.len()));
+    }
+    let r = Matrix3::new(v[0], v[1], v[2], v[4], v[5], v[6], v[8], v[9], v[10]);
+    if (r.transpose() * r - Matrix3::identity()).norm() > ROTATION_ORTHONORMALITY_TOLERANCE
+        || r.determinant() <= 0.0
+    {
+        return Err("the 3x3 block is not a rotation".into());
+    }
+    let q = UnitQuaternion::from_rotation_matrix(&Rotation3::from_matrix_unchecked(r));
+    Ok(Isometry3::from_parts(
+        Translation3::new(v[3], v[7], v[11]),
+        q,
+    ))
 }
 
 /// Parses a `times.txt`: one timestamp (seconds) per line.
