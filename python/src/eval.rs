@@ -160,6 +160,7 @@ pub fn stats_dict<'py>(py: Python<'py>, s: &Stats) -> PyResult<Bound<'py, PyDict
 #[pyo3(
     text_signature = "(gt, est, align=\"se3\", max_dt=0.01, format=None, gt_times=None, est_times=None)"
 )]
+#[allow(clippy::too_many_arguments)] // the Python keyword arguments
 pub fn ate<'py>(
     py: Python<'py>,
     gt: &Bound<'py, PyAny>,
@@ -196,6 +197,7 @@ pub fn ate<'py>(
 #[pyo3(
     text_signature = "(gt, est, align=\"se3\", max_dt=0.01, format=None, gt_times=None, est_times=None)"
 )]
+#[allow(clippy::too_many_arguments)] // the Python keyword arguments
 pub fn rpe<'py>(
     py: Python<'py>,
     gt: &Bound<'py, PyAny>,

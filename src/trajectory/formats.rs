@@ -213,12 +213,6 @@ fn parse_euroc(text: &str, path: &Path) -> Result<Trajectory, TrajectoryError> {
 }
 
 impl Trajectory {
-    /// Reads a file of any format (detected from the content) with
-    /// [`TrajectoryFile::read`], keeping the poses only.
-    pub fn read_any(path: &Path) -> Result<Self, TrajectoryError> {
-        TrajectoryFile::read(path, None, None).map(|f| f.trajectory)
-    }
-
     /// The poses as KITTI text: per pose one line of the 12 numbers of the row-major 3x4
     /// `[R | t]` of `T_wc`, `%.9f`; the timestamps are not written (see
     /// [`Trajectory::to_times_string`]).
