@@ -282,6 +282,11 @@ fn formats_are_detected_from_the_content() {
         detect("#timestamp, p_RS_R_x [m], p_RS_R_y [m]\n10,1,2,3,1,0,0,0\n"),
         Some(TrajectoryFormat::Euroc)
     );
+    // Nanosecond stamps without commas stay TUM, as evo reads such files.
+    assert_eq!(
+        detect("1403636579763555584 1 2 3 0 0 0 1\n"),
+        Some(TrajectoryFormat::Tum)
+    );
     assert_eq!(detect("1 2 3 4 5\n"), None);
     assert_eq!(detect("# nothing\n"), None);
     assert_eq!("KITTI".parse(), Ok(TrajectoryFormat::Kitti));

@@ -42,8 +42,8 @@ impl TrajectoryFormat {
 
     /// The format of trajectory text, from its content: a header comment naming EuRoC's
     /// columns (`p_RS_R_x` or `q_RS_w`) means EuRoC; otherwise the first data line decides:
-    /// 12 fields KITTI, at least 8 fields whose first is an integer of 16 digits or more (a
-    /// nanosecond stamp) EuRoC, 8 fields TUM. `None` when nothing fits (or no data line).
+    /// 12 fields KITTI, at least 8 comma-separated fields whose first is an integer of 16
+    /// digits or more (a nanosecond stamp) EuRoC, 8 fields TUM. `None` when nothing fits (or no data line).
     pub fn detect(text: &str) -> Option<Self> {
         let header = text
             .lines()
@@ -53,9 +53,11 @@ impl TrajectoryFormat {
         if header {
             return Some(Self::Euroc);
         }
-        let (_, fields) = data_lines(text).next()?;
-        let nanoseconds =
-            fields[0].len() >= NANOSECOND_DIGITS && fields[0].bytes().all(|b| b.is_ascii_digit());
+        let (line, fields) = data_lines(text).next()?;
+        let comma = text.lines().nth(line - 1).is_some_and(|l| l.contains(','));
+        let nanoseconds = comma
+            && fields[0].len() >= NANOSECOND_DIGITS
+            && fields[0].bytes().all(|b| b.is_ascii_digit());
         match fields.len() {
             12 => Some(Self::Kitti),
             n if n >= 8 && nanoseconds => Some(Self::Euroc),

@@ -270,7 +270,7 @@ impl FormatArg {
 /// Flags of `vofront eval`.
 #[derive(Debug, Args)]
 #[command(
-    after_help = "Formats are detected from the content (EuRoC header or nanosecond stamps, 12 \
+    after_help = "Formats are detected from the content (EuRoC header or CSV with nanosecond stamps, 12 \
 numbers KITTI, 8 fields TUM) unless --format, --ref-format or --est-format says. A KITTI file \
 without times is matched to the other trajectory by index (both must have as many poses); \
 with --times / --ref-times / --est-times it is associated by time like the others. EuRoC \
