@@ -1,4 +1,5 @@
-//! Timestamped camera trajectories: TUM and KITTI text formats and timestamp association.
+//! Timestamped camera trajectories: TUM, KITTI and EuRoC text formats and timestamp
+//! association.
 //!
 //! A [`Trajectory`] is a list of `(timestamp in seconds, T_wc)` pairs, `T_wc` the
 //! camera-to-world pose (`x_w = R x_c + t`).
@@ -7,7 +8,12 @@
 //!   quaternion with the scalar last); `#` starts a comment line; fields may be separated by
 //!   whitespace or commas. Written with `%.6f` timestamps and `%.9f` values.
 //! - KITTI format: one pose per line, 12 numbers, the 3x4 row-major matrix `[R | t]` of
-//!   `T_wc`; timestamps come from a separate `times.txt` (one number per line).
+//!   `T_wc`; timestamps come from a separate `times.txt` (one number per line), or none.
+//! - EuRoC ground-truth CSV: `timestamp [ns], px, py, pz, qw, qx, qy, qz, ...` (scalar-first
+//!   quaternion, extra columns ignored), stamps turned into seconds.
+//!
+//! [`TrajectoryFormat::detect`] tells them apart from the content; [`TrajectoryFile::read`]
+//! reads any of them and [`pair_untimed`] matches files without timestamps by index.
 //!
 //! ```
 //! use nalgebra::{Isometry3, Vector3};
@@ -28,6 +34,10 @@ use std::path::{Path, PathBuf};
 
 use nalgebra::{Isometry3, Matrix3, Quaternion, Rotation3, Translation3, UnitQuaternion, Vector3};
 use thiserror::Error;
+
+mod formats;
+
+pub use formats::{pair_untimed, TrajectoryFile, TrajectoryFormat};
 
 /// Tolerance on `|R^T R - I|` (Frobenius) for a KITTI rotation block to be accepted; the
 /// published poses are orthonormal to about 1e-6, so anything far off is a corrupt line.
@@ -61,6 +71,26 @@ pub enum TrajectoryError {
         poses: usize,
         /// Number of timestamps.
         times: usize,
+    },
+    /// Timestamps were given for a file that is not in KITTI format.
+    #[error("{path}: times are only for KITTI pose files, this one is {format}")]
+    TimesNotKitti {
+        /// The trajectory file.
+        path: PathBuf,
+        /// Its format name.
+        format: &'static str,
+    },
+    /// A file without timestamps (KITTI) can only be matched by index, which needs the other
+    /// trajectory to have as many poses.
+    #[error(
+        "a trajectory without timestamps (KITTI) is matched by index, but the reference has \
+         {reference} poses and the estimate {estimate}: give its times.txt"
+    )]
+    IndexMismatch {
+        /// Poses of the reference.
+        reference: usize,
+        /// Poses of the estimate.
+        estimate: usize,
     },
 }
 
@@ -149,17 +179,10 @@ impl Trajectory {
     /// lines of `times` (seconds, one per line) or, without it, with the pose index.
     pub fn read_kitti(poses: &Path, times: Option<&Path>) -> Result<Self, TrajectoryError> {
         let mats = parse_kitti_poses(&read_text(poses)?, poses)?;
-        let stamps = match times {
-            Some(tp) => parse_times(&read_text(tp)?, tp)?,
-            None => (0..mats.len()).map(|i| i as f64).collect(),
-        };
-        if stamps.len() != mats.len() {
-            return Err(TrajectoryError::CountMismatch {
-                poses: mats.len(),
-                times: stamps.len(),
-            });
-        }
-        Ok(Self::new(stamps.into_iter().zip(mats).collect()))
+        let stamps = times
+            .map(|tp| parse_times(&read_text(tp)?, tp))
+            .transpose()?;
+        formats::kitti_with_times(mats, stamps)
     }
 }
 
@@ -334,19 +357,28 @@ fn parse_kitti_poses(text: &str, path: &Path) -> Result<Vec<Isometry3<f64>>, Tra
                 ));
             }
             let v = parse_numbers(&fields).map_err(|m| err(line, m))?;
-            let r = Matrix3::new(v[0], v[1], v[2], v[4], v[5], v[6], v[8], v[9], v[10]);
-            if (r.transpose() * r - Matrix3::identity()).norm() > ROTATION_ORTHONORMALITY_TOLERANCE
-                || r.determinant() <= 0.0
-            {
-                return Err(err(line, "the 3x3 block is not a rotation".into()));
-            }
-            let q = UnitQuaternion::from_rotation_matrix(&Rotation3::from_matrix_unchecked(r));
-            Ok(Isometry3::from_parts(
-                Translation3::new(v[3], v[7], v[11]),
-                q,
-            ))
+            kitti_pose(&v).map_err(|m| err(line, m))
         })
         .collect()
+}
+
+/// The pose `T_wc` of a KITTI row: 12 numbers, the row-major 3x4 `[R | t]`; an error message
+/// when there are not 12 finite numbers or the 3x3 block is not a rotation (to 1e-3).
+pub fn kitti_pose(v: &[f64]) -> Result<Isometry3<f64>, String> {
+    if v.len() != 12 || !v.iter().all(|x| x.is_finite()) {
+        return Err(format!("expected 12 finite numbers, found {}", v.len()));
+    }
+    let r = Matrix3::new(v[0], v[1], v[2], v[4], v[5], v[6], v[8], v[9], v[10]);
+    if (r.transpose() * r - Matrix3::identity()).norm() > ROTATION_ORTHONORMALITY_TOLERANCE
+        || r.determinant() <= 0.0
+    {
+        return Err("the 3x3 block is not a rotation".into());
+    }
+    let q = UnitQuaternion::from_rotation_matrix(&Rotation3::from_matrix_unchecked(r));
+    Ok(Isometry3::from_parts(
+        Translation3::new(v[3], v[7], v[11]),
+        q,
+    ))
 }
 
 /// Parses a `times.txt`: one timestamp (seconds) per line.

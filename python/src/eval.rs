@@ -7,7 +7,9 @@ use numpy::{AllowTypeChange, PyArray1, PyArrayLike2};
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
 use vofront::eval::{ate as ate_of, rpe as rpe_of, Alignment, EvalConfig, Stats};
-use vofront::trajectory::Trajectory;
+use vofront::trajectory::{
+    kitti_pose, pair_untimed, Trajectory, TrajectoryError, TrajectoryFile, TrajectoryFormat,
+};
 
 use crate::convert::bad;
 use crate::errors::{failed, release, trajectory_error};
@@ -23,38 +25,93 @@ pub fn tum_rows(t: &Trajectory) -> Vec<f64> {
         .collect()
 }
 
-/// A trajectory from a TUM file path or an (N, 8) array of TUM rows.
-fn trajectory(obj: &Bound<'_, PyAny>, what: &str) -> PyResult<Trajectory> {
+/// A trajectory from a file path (TUM, KITTI or EuRoC: `format`, else detected; `times`
+/// stamps a KITTI file), an (N, 8) array of TUM rows or an (N, 12) array of KITTI rows.
+fn trajectory(
+    obj: &Bound<'_, PyAny>,
+    what: &str,
+    format: Option<TrajectoryFormat>,
+    times: Option<PathBuf>,
+) -> PyResult<TrajectoryFile> {
     if let Ok(path) = obj.extract::<PathBuf>() {
-        return Trajectory::read_tum(&path).map_err(trajectory_error);
+        return TrajectoryFile::read(&path, format, times.as_deref()).map_err(|e| match e {
+            TrajectoryError::TimesNotKitti { .. } => bad(format!("{what}: {e}")),
+            e => trajectory_error(e),
+        });
     }
     let a: PyArrayLike2<'_, f64, AllowTypeChange> = obj.extract().map_err(|_| {
         bad(format!(
-            "{what}: expected a TUM file path or an (N, 8) array of rows t tx ty tz qx qy qz qw"
+            "{what}: expected a trajectory file path, an (N, 8) array of TUM rows t tx ty tz qx \
+             qy qz qw or an (N, 12) array of KITTI rows"
         ))
     })?;
-    let a = a.as_array();
-    if a.ncols() != 8 {
+    if times.is_some() {
         return Err(bad(format!(
-            "{what}: expected shape (N, 8), got {:?}",
-            a.shape()
+            "{what}: times are for KITTI files, not arrays"
         )));
     }
+    let a = a.as_array();
+    let kitti = match a.ncols() {
+        8 => false,
+        12 => true,
+        _ => {
+            return Err(bad(format!(
+                "{what}: expected shape (N, 8) or (N, 12), got {:?}",
+                a.shape()
+            )))
+        }
+    };
     let mut poses = Vec::with_capacity(a.nrows());
     for (i, r) in a.rows().into_iter().enumerate() {
-        let q = Quaternion::new(r[7], r[4], r[5], r[6]);
-        if !r.iter().all(|v| v.is_finite()) || q.norm() < 1e-9 {
-            return Err(bad(format!(
-                "{what}: row {i} is not finite or has a zero quaternion"
-            )));
-        }
-        let pose = Isometry3::from_parts(
+        let pose = if kitti {
+            kitti_pose(&r.to_vec()).ok()
+        } else {
+            tum_row(&r.to_vec())
+        };
+        let pose = pose.ok_or_else(|| {
+            bad(format!(
+                "{what}: row {i} is not finite or has no rotation (zero quaternion or a 3x3 \
+                 block that is not a rotation)"
+            ))
+        })?;
+        poses.push((if kitti { i as f64 } else { r[0] }, pose));
+    }
+    Ok(TrajectoryFile {
+        trajectory: Trajectory::new(poses),
+        format: if kitti {
+            TrajectoryFormat::Kitti
+        } else {
+            TrajectoryFormat::Tum
+        },
+        timed: !kitti,
+    })
+}
+
+/// The pose of a TUM row `t tx ty tz qx qy qz qw`; `None` when not finite or zero quaternion.
+fn tum_row(r: &[f64]) -> Option<Isometry3<f64>> {
+    let q = Quaternion::new(r[7], r[4], r[5], r[6]);
+    (r.iter().all(|v| v.is_finite()) && q.norm() >= 1e-9).then(|| {
+        Isometry3::from_parts(
             Translation3::new(r[1], r[2], r[3]),
             UnitQuaternion::from_quaternion(q),
-        );
-        poses.push((r[0], pose));
-    }
-    Ok(Trajectory::new(poses))
+        )
+    })
+}
+
+/// The two trajectories of `ate` / `rpe`, matched by index when one has no timestamps.
+fn pair(
+    gt: &Bound<'_, PyAny>,
+    est: &Bound<'_, PyAny>,
+    format: Option<&str>,
+    gt_times: Option<PathBuf>,
+    est_times: Option<PathBuf>,
+) -> PyResult<(Trajectory, Trajectory)> {
+    let format = format
+        .map(|f| f.parse::<TrajectoryFormat>().map_err(bad))
+        .transpose()?;
+    let gt = trajectory(gt, "gt", format, gt_times)?;
+    let est = trajectory(est, "est", format, est_times)?;
+    pair_untimed(gt, est).map_err(|e| bad(e.to_string()))
 }
 
 fn alignment(name: Option<&str>) -> PyResult<Alignment> {
@@ -89,22 +146,32 @@ pub fn stats_dict<'py>(py: Python<'py>, s: &Stats) -> PyResult<Bound<'py, PyDict
 /// Absolute trajectory error (translation, metres) of `est` against `gt`, as
 /// `evo_ape tum gt est [--align [--correct_scale]]`.
 ///
-/// `gt`, `est`: TUM files or (N, 8) arrays `t tx ty tz qx qy qz qw` (camera-to-world).
+/// `gt`, `est`: trajectory files, TUM, KITTI or EuRoC CSV (`format`: `tum`, `kitti` or
+/// `euroc` for both, else detected from each file's content, as `vofront eval`), (N, 8)
+/// arrays of TUM rows `t tx ty tz qx qy qz qw` or (N, 12) arrays of KITTI rows (camera-to-world).
+/// `gt_times`, `est_times`: KITTI `times.txt` files stamping KITTI poses; a KITTI trajectory
+/// without times is matched to the other by index (both need as many poses).
 /// `align`: `se3` (rigid Umeyama, default as in `vofront eval`), `sim3` (with scale) or
 /// `none`; `max_dt`: largest timestamp difference for associating poses, seconds.
 /// Returns the statistics (`rmse`, `mean`, `median`, `std`, `min`, `max`, `sse`, `count`)
 /// with `pairs`, `alignment`, `scale` and `errors` (per associated pose, metres).
 #[pyfunction]
-#[pyo3(signature = (gt, est, align = Some("se3"), max_dt = 0.01))]
-#[pyo3(text_signature = "(gt, est, align=\"se3\", max_dt=0.01)")]
+#[pyo3(signature = (gt, est, align = Some("se3"), max_dt = 0.01, format = None, gt_times = None, est_times = None))]
+#[pyo3(
+    text_signature = "(gt, est, align=\"se3\", max_dt=0.01, format=None, gt_times=None, est_times=None)"
+)]
+#[allow(clippy::too_many_arguments)] // the Python keyword arguments
 pub fn ate<'py>(
     py: Python<'py>,
     gt: &Bound<'py, PyAny>,
     est: &Bound<'py, PyAny>,
     align: Option<&str>,
     max_dt: f64,
+    format: Option<&str>,
+    gt_times: Option<PathBuf>,
+    est_times: Option<PathBuf>,
 ) -> PyResult<Bound<'py, PyDict>> {
-    let (gt, est) = (trajectory(gt, "gt")?, trajectory(est, "est")?);
+    let (gt, est) = pair(gt, est, format, gt_times, est_times)?;
     let alignment = alignment(align)?;
     let cfg = EvalConfig { max_dt, alignment };
     let a = release(py, || {
@@ -126,16 +193,22 @@ pub fn ate<'py>(
 /// the ground truth does not rotate) and `pairs`. A rigid alignment leaves relative poses
 /// unchanged, so only `align="sim3"` (scale) changes the result, as in `vofront eval`.
 #[pyfunction]
-#[pyo3(signature = (gt, est, align = Some("se3"), max_dt = 0.01))]
-#[pyo3(text_signature = "(gt, est, align=\"se3\", max_dt=0.01)")]
+#[pyo3(signature = (gt, est, align = Some("se3"), max_dt = 0.01, format = None, gt_times = None, est_times = None))]
+#[pyo3(
+    text_signature = "(gt, est, align=\"se3\", max_dt=0.01, format=None, gt_times=None, est_times=None)"
+)]
+#[allow(clippy::too_many_arguments)] // the Python keyword arguments
 pub fn rpe<'py>(
     py: Python<'py>,
     gt: &Bound<'py, PyAny>,
     est: &Bound<'py, PyAny>,
     align: Option<&str>,
     max_dt: f64,
+    format: Option<&str>,
+    gt_times: Option<PathBuf>,
+    est_times: Option<PathBuf>,
 ) -> PyResult<Bound<'py, PyDict>> {
-    let (gt, est) = (trajectory(gt, "gt")?, trajectory(est, "est")?);
+    let (gt, est) = pair(gt, est, format, gt_times, est_times)?;
     let alignment = match alignment(align)? {
         Alignment::Sim3 => Alignment::Sim3,
         _ => Alignment::None,

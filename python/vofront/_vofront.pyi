@@ -191,17 +191,31 @@ def ate(
     est: _TrajectoryLike,
     align: Optional[str] = "se3",
     max_dt: float = 0.01,
+    format: Optional[str] = None,
+    gt_times: Optional[Union[str, PathLike]] = None,
+    est_times: Optional[Union[str, PathLike]] = None,
 ) -> dict[str, Any]:
     """Absolute trajectory error (metres) as ``evo_ape``: ``rmse``, ``mean``, ``median``,
     ``std``, ``min``, ``max``, ``sse``, ``count``, ``pairs``, ``alignment``, ``scale``,
-    ``errors``. ``align``: ``se3``, ``sim3`` or ``none``."""
+    ``errors``. ``align``: ``se3``, ``sim3`` or ``none``.
+    ``gt``, ``est``: TUM, KITTI or EuRoC CSV files (``format``: ``tum``, ``kitti`` or
+    ``euroc`` for both, else detected from each file), (N, 8) TUM rows or (N, 12) KITTI rows.
+    ``gt_times``/``est_times``: KITTI ``times.txt`` of a KITTI file; a KITTI trajectory
+    without times is matched to the other by index (same number of poses, else ValueError)."""
 
 def rpe(
     gt: _TrajectoryLike,
     est: _TrajectoryLike,
     align: Optional[str] = "se3",
     max_dt: float = 0.01,
+    format: Optional[str] = None,
+    gt_times: Optional[Union[str, PathLike]] = None,
+    est_times: Optional[Union[str, PathLike]] = None,
 ) -> dict[str, Any]:
     """Relative pose error per frame as ``evo_rpe --delta 1``: ``translation`` (metres) and
     ``rotation_deg`` statistics, ``rotation_scale`` (``{"scale", "sigma"}``: estimated over
-    true rotation, 1 when the calibration agrees; ``None`` without true rotation), ``pairs``."""
+    true rotation, 1 when the calibration agrees; ``None`` without true rotation), ``pairs``.
+    ``gt``, ``est``: TUM, KITTI or EuRoC CSV files (``format``: ``tum``, ``kitti`` or
+    ``euroc`` for both, else detected from each file), (N, 8) TUM rows or (N, 12) KITTI rows.
+    ``gt_times``/``est_times``: KITTI ``times.txt`` of a KITTI file; a KITTI trajectory
+    without times is matched to the other by index (same number of poses, else ValueError)."""

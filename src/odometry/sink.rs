@@ -1,6 +1,6 @@
 //! Where [`super::run::run_with`] streams each frame's record: the [`FrameSink`] trait and the
-//! two file sinks, [`TumSink`] (the trajectory) and [`MetricsCsvSink`] (one [`MetricsRow`] of
-//! [`METRICS_COLUMNS`] per frame), both flushed per frame.
+//! file sinks, [`TumSink`] or [`KittiSink`] (the trajectory) and [`MetricsCsvSink`] (one
+//! [`MetricsRow`] of [`METRICS_COLUMNS`] per frame), all flushed per frame.
 
 use std::io::{self, Write};
 
@@ -60,6 +60,37 @@ impl<W: Write> FrameSink for TumSink<W> {
             let line = Trajectory::new(vec![(record.timestamp, pose)]).to_tum_string();
             self.out.write_all(line.as_bytes())?;
             self.out.flush()?;
+        }
+        Ok(())
+    }
+}
+
+/// Writes the tracked frames as KITTI pose lines (12 numbers, the row-major 3x4 `[R | t]` of
+/// `T_wc`, see [`Trajectory::to_kitti_string`]) and their timestamps, one `%.6f` second stamp
+/// per line as KITTI's `times.txt`, into a second writer; both flushed after every frame.
+/// KITTI files have no timestamps and only tracked frames are written, so after lost frames
+/// the pose file is shorter than the sequence: the times file says which frames it holds.
+#[derive(Debug)]
+pub struct KittiSink<W: Write> {
+    poses: W,
+    times: W,
+}
+
+impl<W: Write> KittiSink<W> {
+    /// A sink writing the poses into `poses` and their timestamps into `times`.
+    pub fn new(poses: W, times: W) -> Self {
+        Self { poses, times }
+    }
+}
+
+impl<W: Write> FrameSink for KittiSink<W> {
+    fn frame(&mut self, record: &FrameRecord) -> io::Result<()> {
+        if let Some(pose) = record.trajectory_pose() {
+            let one = Trajectory::new(vec![(record.timestamp, pose)]);
+            self.poses.write_all(one.to_kitti_string().as_bytes())?;
+            self.times.write_all(one.to_times_string().as_bytes())?;
+            self.poses.flush()?;
+            self.times.flush()?;
         }
         Ok(())
     }

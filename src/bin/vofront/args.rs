@@ -7,6 +7,7 @@ use clap::{Args, Parser, Subcommand, ValueEnum};
 use vofront::geometry::camera::{Camera, Distortion, KannalaBrandt, Lens, Pinhole};
 use vofront::odometry::registry::{default_camera, TrackerKind};
 use vofront::presets::{camera_preset, principal_point_warning, PRESETS};
+use vofront::trajectory::TrajectoryFormat;
 use vofront::two_view::Method;
 
 /// vofront: visual-odometry front-end. Without a command, runs the synthetic demo.
@@ -29,10 +30,11 @@ pub enum Command {
     /// Robust relative pose from given pixel correspondences (CSV x1,y1,x2,y2), as JSON with
     /// its verdict. Exit code 0: the pose is ok; 4: printed but not ok; 1: no pose at all.
     Relpose(RelposeArgs),
-    /// Track a whole sequence (TUM RGB-D, KITTI or EuRoC folder) into a TUM trajectory.
+    /// Track a whole sequence (TUM RGB-D, KITTI or EuRoC folder) into a TUM or KITTI trajectory.
     /// Exit code 3: tracking was lost for good (partial results are still written).
     Odometry(OdometryArgs),
-    /// Absolute and relative trajectory errors of an estimate against ground truth (TUM files).
+    /// Absolute and relative trajectory errors of an estimate against ground truth (TUM, KITTI
+    /// or EuRoC files, as evo reads them).
     Eval(EvalArgs),
 }
 
@@ -243,13 +245,60 @@ pub enum DeltaUnitArg {
     Seconds,
 }
 
+/// A trajectory file format (evo's names).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
+pub enum FormatArg {
+    /// `timestamp tx ty tz qx qy qz qw` (seconds, metres, scalar-last quaternion).
+    Tum,
+    /// 12 numbers per line, row-major 3x4 `[R | t]`; no timestamps (see `--times`).
+    Kitti,
+    /// EuRoC ground-truth CSV: `timestamp [ns], px, py, pz, qw, qx, qy, qz, ...`.
+    Euroc,
+}
+
+impl FormatArg {
+    /// The library's format.
+    pub fn format(self) -> TrajectoryFormat {
+        match self {
+            Self::Tum => TrajectoryFormat::Tum,
+            Self::Kitti => TrajectoryFormat::Kitti,
+            Self::Euroc => TrajectoryFormat::Euroc,
+        }
+    }
+}
+
 /// Flags of `vofront eval`.
 #[derive(Debug, Args)]
+#[command(
+    after_help = "Formats are detected from the content (EuRoC header or CSV with nanosecond stamps, 12 \
+numbers KITTI, 8 fields TUM) unless --format, --ref-format or --est-format says. A KITTI file \
+without times is matched to the other trajectory by index (both must have as many poses); \
+with --times / --ref-times / --est-times it is associated by time like the others. EuRoC \
+ground truth is the body (IMU) pose and is compared as is, as evo_ape euroc does."
+)]
 pub struct EvalArgs {
-    /// Ground-truth trajectory, TUM format (`timestamp tx ty tz qx qy qz qw`, camera-to-world).
+    /// Ground-truth (reference) trajectory, camera-to-world: TUM, KITTI or EuRoC CSV.
     pub gt: PathBuf,
-    /// Estimated trajectory, TUM format.
+    /// Estimated trajectory: TUM, KITTI or EuRoC CSV.
     pub est: PathBuf,
+    /// Format of both files [default: detected from each file's content].
+    #[arg(long, value_enum, value_name = "FORMAT")]
+    pub format: Option<FormatArg>,
+    /// Format of the ground truth, overriding `--format`.
+    #[arg(long, value_enum, value_name = "FORMAT", alias = "gt-format")]
+    pub ref_format: Option<FormatArg>,
+    /// Format of the estimate, overriding `--format`.
+    #[arg(long, value_enum, value_name = "FORMAT")]
+    pub est_format: Option<FormatArg>,
+    /// Timestamps (seconds, one per line, as KITTI's times.txt) of every KITTI file given.
+    #[arg(long, value_name = "TXT", conflicts_with_all = ["ref_times", "est_times"])]
+    pub times: Option<PathBuf>,
+    /// Timestamps of the ground truth when it is a KITTI file.
+    #[arg(long, value_name = "TXT", alias = "gt-times")]
+    pub ref_times: Option<PathBuf>,
+    /// Timestamps of the estimate when it is a KITTI file.
+    #[arg(long, value_name = "TXT")]
+    pub est_times: Option<PathBuf>,
     /// Alignment before computing errors.
     #[arg(long, value_enum, default_value_t = AlignArg::Se3)]
     pub align: AlignArg,
@@ -297,6 +346,15 @@ pub struct EvalArgs {
     pub svg: bool,
 }
 
+/// Format of the trajectory written by `vofront odometry`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
+pub enum OutFormat {
+    /// `t tx ty tz qx qy qz qw` per tracked frame.
+    Tum,
+    /// 12 numbers (row-major 3x4 `T_wc`) per tracked frame, times in `<out>.times`.
+    Kitti,
+}
+
 /// Flags of `vofront odometry`.
 #[derive(Debug, Args)]
 #[command(
@@ -328,9 +386,14 @@ pub struct OdometryArgs {
     /// for feature-rgbd].
     #[arg(long, value_name = "N")]
     pub features: Option<usize>,
-    /// Trajectory output, TUM format (camera-to-world, first frame at the origin).
+    /// Trajectory output (camera-to-world, first frame at the origin), one line per tracked
+    /// frame, in `--out-format`.
     #[arg(long, value_name = "TXT", default_value = "vofront-out/trajectory.txt")]
     pub out: PathBuf,
+    /// Format of `--out`: tum (`t tx ty tz qx qy qz qw`) or kitti (12 numbers per line, no
+    /// timestamps; their times go to `<out>.times`, one line per pose, as KITTI's times.txt).
+    #[arg(long, value_enum, value_name = "FORMAT", default_value_t = OutFormat::Tum)]
+    pub out_format: OutFormat,
     /// Per-frame CSV: status, keyframe, inliers, inlier ratio, rmse, iterations, covariance
     /// trace, ms, message, verdict, reasons.
     #[arg(long, value_name = "CSV", default_value = "vofront-out/frames.csv")]

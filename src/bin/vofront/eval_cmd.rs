@@ -1,15 +1,16 @@
 //! `vofront eval GT EST`: ATE and RPE of an estimated trajectory, as evo computes them.
 
-use std::path::PathBuf;
+use std::fs;
+use std::path::{Path, PathBuf};
 
 use serde::Serialize;
 use vofront::eval::plot::{write_eval_plots, write_plot, PlotFormat};
 use vofront::eval::{
     ate, rpe_with, Alignment, DeltaUnit, EvalConfig, RotationScale, RpeConfig, Stats,
 };
-use vofront::trajectory::Trajectory;
+use vofront::trajectory::{pair_untimed, Trajectory, TrajectoryFile, TrajectoryFormat};
 
-use crate::args::{AlignArg, DeltaUnitArg, EvalArgs};
+use crate::args::{AlignArg, DeltaUnitArg, EvalArgs, FormatArg};
 
 /// The `--json` summary (keys are public: add, don't rename).
 #[derive(Serialize)]
@@ -45,10 +46,34 @@ fn unit(arg: DeltaUnitArg) -> DeltaUnit {
     }
 }
 
+/// Reads the ground truth and the estimate in their formats (flags, else detected), with
+/// their KITTI times (`--times` stamps whichever of the two is KITTI), matched by index when
+/// one has no timestamps.
+fn read_pair(args: &EvalArgs) -> Result<(Trajectory, Trajectory), String> {
+    let read = |path: &Path, format: Option<FormatArg>, times: Option<&PathBuf>| {
+        let format = match format.or(args.format) {
+            Some(f) => f.format(),
+            None => {
+                let text =
+                    fs::read_to_string(path).map_err(|e| format!("{}: {e}", path.display()))?;
+                TrajectoryFormat::detect(&text).unwrap_or(TrajectoryFormat::Tum)
+            }
+        };
+        let times = times.or(args
+            .times
+            .as_ref()
+            .filter(|_| format == TrajectoryFormat::Kitti));
+        TrajectoryFile::read(path, Some(format), times.map(PathBuf::as_path))
+            .map_err(|e| e.to_string())
+    };
+    let gt = read(&args.gt, args.ref_format, args.ref_times.as_ref())?;
+    let est = read(&args.est, args.est_format, args.est_times.as_ref())?;
+    pair_untimed(gt, est).map_err(|e| e.to_string())
+}
+
 /// Runs `vofront eval`; an error message on failure.
 pub fn run(args: &EvalArgs) -> Result<(), String> {
-    let gt = Trajectory::read_tum(&args.gt).map_err(|e| e.to_string())?;
-    let est = Trajectory::read_tum(&args.est).map_err(|e| e.to_string())?;
+    let (gt, est) = read_pair(args)?;
     let (alignment, alignment_name) = match args.align {
         AlignArg::None => (Alignment::None, "none"),
         AlignArg::Se3 => (Alignment::Se3, "se3"),

@@ -9,7 +9,7 @@
 
 use std::fs::File;
 use std::io::{BufWriter, IsTerminal};
-use std::path::Path;
+use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
 use std::sync::Arc;
 
@@ -22,10 +22,11 @@ use vofront::odometry::registry::{Evaluation, Session, TrackerOptions};
 use vofront::odometry::run::{
     run as run_tracker, FrameRecord, MetricsCsvSink, RunControl, RunOutput, RunSummary, TumSink,
 };
+use vofront::odometry::sink::KittiSink;
 use vofront::odometry::Tracker;
 use vofront::report::odometry::{OdometryReport, Outputs};
 
-use crate::args::OdometryArgs;
+use crate::args::{OdometryArgs, OutFormat};
 
 /// Exit code when tracking was lost for good (partial results are still written).
 pub const EXIT_LOST: u8 = 3;
@@ -173,6 +174,13 @@ fn report_json(
     ))
 }
 
+/// Where `--out-format kitti` writes the timestamps of the poses in `out`: `<out>.times`.
+fn kitti_times_path(out: &Path) -> PathBuf {
+    let mut name = out.as_os_str().to_owned();
+    name.push(".times");
+    PathBuf::from(name)
+}
+
 /// Creates `path` for writing (and its missing parent folders), before any work is done.
 fn create_output(path: &Path) -> Result<BufWriter<File>, String> {
     let fail = |e: std::io::Error| format!("{}: cannot write: {e}", path.display());
@@ -227,7 +235,13 @@ pub fn run(args: &OdometryArgs) -> Result<u8, String> {
         features: args.features,
     };
     let mut tracker = session.tracker(&options).map_err(|e| e.to_string())?;
-    let trajectory = TumSink::new(create_output(&args.out)?);
+    let trajectory = match args.out_format {
+        OutFormat::Tum => (Some(TumSink::new(create_output(&args.out)?)), None),
+        OutFormat::Kitti => {
+            let times = create_output(&kitti_times_path(&args.out))?;
+            (None, Some(KittiSink::new(create_output(&args.out)?, times)))
+        }
+    };
     let metrics = MetricsCsvSink::new(create_output(&args.metrics)?)
         .map_err(|e| format!("{}: cannot write: {e}", args.metrics.display()))?;
     let graph = args
