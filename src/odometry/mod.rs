@@ -5,14 +5,15 @@
 //! ([`keyframe`]), and reports the camera pose `T_wc` (camera-to-world, first frame at the
 //! origin) with a [`TrackStatus`], [`FrameQuality`] scores and the [`Quality`] record of the
 //! estimate behind the pose ([`FrameEstimate::pose_quality`]: SE(3) for [`direct`], PnP for
-//! [`feature_rgbd`], PnP or the initialising two-view pose for [`mono`]). The status agrees with
+//! [`feature_rgbd`] and [`stereo`], PnP or the initialising two-view pose for [`mono`]). The status agrees with
 //! the verdict: a `failed` estimate loses the frame, an `unreliable` one is
 //! [`TrackStatus::Unreliable`], never plain [`TrackStatus::Ok`]. [`run`] drives a tracker over a
 //! [`crate::dataset::Dataset`] and collects the trajectory.
 //!
 //! - [`direct`]: RGB-D photometric SE(3) alignment to the keyframe;
 //! - [`feature_rgbd`]: ORB matched to the keyframe, 3D points from its depth, PnP RANSAC;
-//! - [`mono`]: monocular ORB: two-view initialisation, triangulated points, PnP tracking.
+//! - [`mono`]: monocular ORB: two-view initialisation, triangulated points, PnP tracking;
+//! - [`stereo`]: ORB on a rectified stereo pair, metric points at once, PnP tracking.
 //!
 //! What every sequential tracker may need besides its own alignment lives here too, crate-
 //! private: `coast` (the motion model keeps its velocity through up to ten lost frames, then
@@ -29,12 +30,14 @@ pub mod feature_rgbd;
 pub mod graph;
 pub mod keyframe;
 mod late;
+mod local_map;
 mod lost;
 pub mod mono;
 pub mod motion;
 pub mod registry;
 pub mod run;
 pub mod sink;
+pub mod stereo;
 
 use std::time::Instant;
 
@@ -164,6 +167,13 @@ pub trait Tracker {
     /// once. Empty by default.
     fn revised(&mut self) -> Vec<(usize, FrameEstimate)> {
         Vec::new()
+    }
+
+    /// True when every frame must carry its right image ([`Frame::right`]): the run then
+    /// loads frames with [`Dataset::load_stereo`](crate::dataset::Dataset::load_stereo).
+    /// False by default.
+    fn needs_right(&self) -> bool {
+        false
     }
 }
 

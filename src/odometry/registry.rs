@@ -32,6 +32,7 @@ use std::path::PathBuf;
 use std::str::FromStr;
 
 use thiserror::Error;
+use vofront_core::rig::Rig;
 use vofront_features::FeatureError;
 use vofront_geometry::camera::Pinhole;
 use vofront_geometry::Camera;
@@ -40,6 +41,7 @@ use super::direct::{DirectTracker, DirectTrackerConfig};
 use super::feature_rgbd::{FeatureRgbdConfig, FeatureRgbdTracker};
 use super::mono::{MonoConfig, MonoTracker};
 use super::run::{run_with, FrameSink, RunControl, RunError, RunOutput};
+use super::stereo::{StereoTracker, StereoTrackerConfig, StereoTrackerError};
 use super::Tracker;
 use crate::dataset::{CameraSource, Dataset};
 use crate::eval::{ate, rpe, Alignment, AteResult, EvalConfig, EvalError, RpeResult};
@@ -58,6 +60,10 @@ pub enum TrackerKind {
     /// `mono` (alias `feature`): monocular ORB, two-view initialisation, triangulated points,
     /// PnP; the trajectory's scale is arbitrary ([`super::mono::MonoTracker`]).
     Mono,
+    /// `stereo`: ORB on a rectified stereo pair, metric map points at once, PnP tracking
+    /// against the local map; metric poses ([`super::stereo::StereoTracker`]). Needs a stereo
+    /// rig ([`Dataset::rig`]).
+    Stereo,
 }
 
 /// Options a front-end may set on any tracker; `None` keeps the tracker's default.
@@ -69,7 +75,8 @@ pub struct TrackerOptions {
 
 impl TrackerKind {
     /// Every tracker, in the order front-ends list them.
-    pub const ALL: &'static [TrackerKind] = &[Self::Direct, Self::FeatureRgbd, Self::Mono];
+    pub const ALL: &'static [TrackerKind] =
+        &[Self::Direct, Self::FeatureRgbd, Self::Mono, Self::Stereo];
 
     /// The name front-ends use (`--method NAME`, JSON `method`).
     pub fn name(self) -> &'static str {
@@ -77,6 +84,7 @@ impl TrackerKind {
             Self::Direct => "direct",
             Self::FeatureRgbd => "feature-rgbd",
             Self::Mono => "mono",
+            Self::Stereo => "stereo",
         }
     }
 
@@ -87,6 +95,7 @@ impl TrackerKind {
             Self::Direct => &[],
             Self::FeatureRgbd => &["feature_rgbd"],
             Self::Mono => &["feature"],
+            Self::Stereo => &[],
         }
     }
 
@@ -101,6 +110,10 @@ impl TrackerKind {
                 "Monocular ORB: two-view initialisation, triangulated points, PnP; arbitrary \
                  scale (alias: feature)"
             }
+            Self::Stereo => {
+                "Stereo ORB: metric map points from the rectified pair, PnP against the local \
+                 map; needs a stereo rig"
+            }
         }
     }
 
@@ -108,21 +121,29 @@ impl TrackerKind {
     pub fn needs_depth(self) -> bool {
         match self {
             Self::Direct | Self::FeatureRgbd => true,
-            Self::Mono => false,
+            Self::Mono | Self::Stereo => false,
         }
+    }
+
+    /// True when every frame must carry its right image: the tracker is built from the
+    /// dataset's stereo rig ([`TrackerKind::build_for_rig`]) and frames are loaded with
+    /// [`Dataset::load_stereo`].
+    pub fn needs_right(self) -> bool {
+        matches!(self, Self::Stereo)
     }
 
     /// The alignment its trajectory is evaluated with: Sim(3) when the scale is unobservable
     /// (monocular), SE(3) otherwise.
     pub fn alignment(self) -> Alignment {
         match self {
-            Self::Direct | Self::FeatureRgbd => Alignment::Se3,
+            Self::Direct | Self::FeatureRgbd | Self::Stereo => Alignment::Se3,
             Self::Mono => Alignment::Sim3,
         }
     }
 
     /// A tracker of this kind for frames of `camera`, its default configuration with
-    /// `options` applied.
+    /// `options` applied; a kind that needs a stereo rig ([`TrackerKind::needs_right`]) fails
+    /// with [`OdometryError::NeedsStereoRig`] (use [`TrackerKind::build_for_rig`]).
     pub fn build(
         self,
         camera: Camera,
@@ -140,7 +161,27 @@ impl TrackerKind {
                 cfg.orb.n_features = options.features.unwrap_or(cfg.orb.n_features);
                 Box::new(MonoTracker::new(camera, cfg)?)
             }
+            Self::Stereo => return Err(OdometryError::NeedsStereoRig { kind: self }),
         })
+    }
+
+    /// A tracker of this kind for frames of `rig`: the stereo tracker from the whole rig,
+    /// every other kind from its left camera ([`TrackerKind::build`]); a kind that needs a
+    /// stereo rig fails with [`OdometryError::NeedsStereoRig`] on a mono one.
+    pub fn build_for_rig(
+        self,
+        rig: &Rig,
+        options: &TrackerOptions,
+    ) -> Result<Box<dyn Tracker + Send>, OdometryError> {
+        if !self.needs_right() {
+            return self.build(*rig.left(), options);
+        }
+        if !rig.is_stereo() {
+            return Err(OdometryError::NeedsStereoRig { kind: self });
+        }
+        let mut cfg = StereoTrackerConfig::default();
+        cfg.orb.n_features = options.features.unwrap_or(cfg.orb.n_features);
+        Ok(Box::new(StereoTracker::new(*rig, cfg)?))
     }
 
     /// `name` as listed for an unknown one: every name, then the aliases.
@@ -207,6 +248,23 @@ pub enum OdometryError {
         /// The tracker asked for.
         kind: TrackerKind,
     },
+    /// The tracker needs a stereo rig and the dataset has one camera (or none known).
+    #[error("{}: the {kind} method needs a stereo rig (KITTI image_1/ with P1, EuRoC cam1/), and this dataset has one camera", dataset.display())]
+    NoStereo {
+        /// The dataset folder.
+        dataset: PathBuf,
+        /// The tracker asked for.
+        kind: TrackerKind,
+    },
+    /// The tracker needs a stereo rig and was given one camera.
+    #[error("the {kind} method needs a stereo rig, not a single camera")]
+    NeedsStereoRig {
+        /// The tracker asked for.
+        kind: TrackerKind,
+    },
+    /// The stereo tracker could not be built.
+    #[error(transparent)]
+    Stereo(#[from] StereoTrackerError),
     /// The run ended early: a sink refused a record.
     #[error(transparent)]
     Run(#[from] RunError),
@@ -287,7 +345,8 @@ pub struct Evaluation {
 
 impl Session {
     /// The session of `kind` on `dataset`, the camera chosen by [`choose_camera`]; fails with
-    /// [`OdometryError::NoDepth`] when `kind` needs depth and no frame has any.
+    /// [`OdometryError::NoDepth`] when `kind` needs depth and no frame has any, with
+    /// [`OdometryError::NoStereo`] when it needs a stereo rig and the dataset has none.
     pub fn new(
         dataset: Dataset,
         kind: TrackerKind,
@@ -295,6 +354,12 @@ impl Session {
     ) -> Result<Self, OdometryError> {
         if kind.needs_depth() && dataset.frames.iter().all(|f| f.depth.is_none()) {
             return Err(OdometryError::NoDepth {
+                dataset: dataset.root.clone(),
+                kind,
+            });
+        }
+        if kind.needs_right() && !dataset.rig.as_ref().is_some_and(Rig::is_stereo) {
+            return Err(OdometryError::NoStereo {
                 dataset: dataset.root.clone(),
                 kind,
             });
@@ -308,12 +373,16 @@ impl Session {
         })
     }
 
-    /// A fresh tracker of the session's kind and camera.
+    /// A fresh tracker of the session's kind and camera; a kind that needs a stereo rig is
+    /// built from the dataset's rig (its calibration, not a given camera).
     pub fn tracker(
         &self,
         options: &TrackerOptions,
     ) -> Result<Box<dyn Tracker + Send>, OdometryError> {
-        self.kind.build(self.camera, options)
+        match (&self.dataset.rig, self.kind.needs_right()) {
+            (Some(rig), true) => self.kind.build_for_rig(rig, options),
+            _ => self.kind.build(self.camera, options),
+        }
     }
 
     /// Tracks the dataset with `tracker` ([`run_with`]: bounded by `control`, every record
@@ -348,6 +417,8 @@ impl Session {
 
 #[cfg(test)]
 mod tests {
+    use nalgebra::Isometry3;
+
     use super::*;
 
     #[test]
@@ -358,6 +429,7 @@ mod tests {
             ("feature_rgbd", TrackerKind::FeatureRgbd),
             ("mono", TrackerKind::Mono),
             ("feature", TrackerKind::Mono),
+            ("stereo", TrackerKind::Stereo),
         ] {
             assert_eq!(name.parse::<TrackerKind>().unwrap(), kind, "{name}");
         }
@@ -368,34 +440,55 @@ mod tests {
         let err = "sideways".parse::<TrackerKind>().unwrap_err().to_string();
         assert_eq!(
             err,
-            "unknown tracker method 'sideways' (known: direct, feature-rgbd, mono; aliases \
-             feature_rgbd, feature)"
+            "unknown tracker method 'sideways' (known: direct, feature-rgbd, mono, stereo; \
+             aliases feature_rgbd, feature)"
         );
     }
 
     #[test]
-    fn only_mono_runs_without_depth_and_is_similarity_aligned() {
-        let mono: Vec<_> = TrackerKind::ALL
+    fn only_mono_is_similarity_aligned_and_only_stereo_needs_a_right_image() {
+        let needs: Vec<_> = TrackerKind::ALL
             .iter()
-            .filter(|k| !k.needs_depth())
+            .map(|k| (k.needs_depth(), k.needs_right()))
             .collect();
-        assert_eq!(mono, [&TrackerKind::Mono]);
+        assert_eq!(
+            needs,
+            [(true, false), (true, false), (false, false), (false, true)]
+        );
         for kind in TrackerKind::ALL {
-            let want = if kind.needs_depth() {
-                Alignment::Se3
-            } else {
+            let want = if *kind == TrackerKind::Mono {
                 Alignment::Sim3
+            } else {
+                Alignment::Se3
             };
             assert_eq!(kind.alignment(), want, "{kind}");
         }
     }
 
     #[test]
-    fn every_kind_builds_with_the_default_camera_and_any_budget() {
+    fn every_kind_builds_for_its_rig_and_any_budget() {
+        let camera = default_camera();
+        let right_in_left = Isometry3::translation(0.1, 0.0, 0.0);
+        let mono = Rig::mono(camera).unwrap();
+        let stereo = Rig::stereo(camera, Isometry3::identity(), camera, right_in_left).unwrap();
         for kind in TrackerKind::ALL {
             for features in [None, Some(300)] {
-                let built = kind.build(default_camera(), &TrackerOptions { features });
+                let options = TrackerOptions { features };
+                let built = kind.build_for_rig(&stereo, &options);
                 assert!(built.is_ok(), "{kind} {features:?}");
+                assert_eq!(built.unwrap().needs_right(), kind.needs_right(), "{kind}");
+                let on_mono = kind.build_for_rig(&mono, &options);
+                let by_camera = kind.build(camera, &options);
+                if kind.needs_right() {
+                    for err in [on_mono.err(), by_camera.err()] {
+                        assert!(
+                            matches!(err, Some(OdometryError::NeedsStereoRig { .. })),
+                            "{kind}"
+                        );
+                    }
+                } else {
+                    assert!(on_mono.is_ok() && by_camera.is_ok(), "{kind}");
+                }
             }
         }
     }

@@ -236,10 +236,12 @@ fn drive<E>(
             out.summary.interrupted = true;
             break;
         }
-        let estimate = dataset
-            .load(index)
-            .map_err(Arc::new)
-            .map(|frame| tracker.track(&frame));
+        let loaded = if tracker.needs_right() {
+            dataset.load_stereo(index)
+        } else {
+            dataset.load(index)
+        };
+        let estimate = loaded.map_err(Arc::new).map(|frame| tracker.track(&frame));
         let tracked = estimate.is_ok();
         held.push_back(FrameRecord {
             index,

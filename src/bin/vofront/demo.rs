@@ -115,7 +115,8 @@ fn run_sequence(room: &Scene, camera: vofront::geometry::Camera) -> Result<(), S
         "\nsynthetic TUM sequence of {SEQUENCE_FRAMES} frames written to {}",
         dir.display()
     );
-    for &kind in TrackerKind::ALL {
+    // The rendered room is seen by one camera: the trackers of a stereo rig sit it out.
+    for &kind in TrackerKind::ALL.iter().filter(|k| !k.needs_right()) {
         let name = kind.name();
         let session = Session::new(dataset.clone(), kind, Some((camera, "rendered")))
             .map_err(|e| e.to_string())?;

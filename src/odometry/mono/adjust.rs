@@ -12,8 +12,8 @@
 use vofront_geometry::bundle::{bundle_adjust, BundleConfig, BundleProblem, Observation};
 use vofront_geometry::Camera;
 
-use super::map::{level_sigma, LocalMap, PointId};
 use crate::odometry::feature_pixel;
+use crate::odometry::local_map::{level_sigma, LocalMap, PointId};
 
 /// Keyframes held fixed, the oldest of the window.
 ///
@@ -29,7 +29,7 @@ const FIXED_KEYFRAMES: usize = 3;
 
 /// What one local adjustment did.
 #[derive(Debug, Clone, Copy, PartialEq)]
-pub(super) struct Adjusted {
+pub(crate) struct Adjusted {
     /// Points refined.
     pub points: usize,
     /// Observations unlinked as outliers.
@@ -126,10 +126,10 @@ mod tests {
     use vofront_geometry::bundle::BundleConfig;
     use vofront_geometry::{Camera, Pinhole};
 
-    use super::super::map::LocalMap;
     use super::super::tests::level0_features;
     use super::super::MonoConfig;
     use super::FIXED_KEYFRAMES;
+    use crate::odometry::local_map::LocalMap;
 
     /// The tracker's default local adjustment settings.
     fn tracker_adjustment() -> BundleConfig {

@@ -15,7 +15,7 @@ use nalgebra::{Isometry3, Point3};
 use vofront_features::{match_descriptors, Features, MatchConfig};
 use vofront_geometry::{estimate_relative_pose, Camera, RelativePoseConfig};
 
-use super::map::LocalMap;
+use crate::odometry::local_map::LocalMap;
 use crate::odometry::{feature_pixel, reasons_text, FrameQuality};
 use crate::robust::{Quality, Verdict};
 

@@ -45,7 +45,6 @@ mod adjust;
 mod config;
 mod init;
 mod locate;
-mod map;
 #[cfg(test)]
 mod tests;
 
@@ -58,15 +57,12 @@ use vofront_geometry::Camera;
 use super::coast::Coasting;
 use super::keyframe::KeyframeView;
 use super::late::{LateEstimates, Waiting};
+use super::local_map::{LocalMap, MapRules, PointId, WIDE_WINDOW_FACTOR};
 use super::lost::LostMap;
 use super::{ms_since, FrameEstimate, FrameQuality, Located, PointLocator, TrackStatus, Tracker};
 use crate::dataset::Frame;
 pub use config::{MonoConfig, KEYPOINT_QUANTISATION_PX};
 use init::{initialise, rescale, scale_from_motion, scale_to, InitRules};
-use map::{LocalMap, MapRules, PointId};
-
-/// Search window of the retry after a failed tracking attempt, in units of `window_px`.
-const WIDE_WINDOW_FACTOR: f32 = 4.0;
 
 /// Median over points `P` of the parallax angle `angle(P - c1, P - c2)`, degrees (0 without
 /// points).

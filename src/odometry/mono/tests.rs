@@ -9,9 +9,9 @@ use vofront_fixtures::image2d::to_gray8;
 use vofront_geometry::lie::direction_angle_deg;
 
 use super::init::initialise;
-use super::map::{predicted_level, MapPoint};
 use super::{MonoConfig, MonoTracker, State};
 use crate::dataset::Frame;
+use crate::odometry::local_map::{predicted_level, MapPoint};
 use crate::odometry::{TrackStatus, Tracker};
 
 type TestResult = Result<(), Box<dyn Error>>;

@@ -1,11 +1,13 @@
-//! The local map of the monocular tracker: a window of recent keyframes and the points they
-//! observe, each point with its representative descriptor and its observations.
+//! The local map of the feature trackers (`mono`, `stereo`): a window of recent keyframes and
+//! the points they observe, each point with its representative descriptor and its
+//! observations; [`MapSearch`] locates a frame in it.
 //!
 //! - Tracking uses every point observed by a keyframe of the window (the covisible set of the
 //!   current keyframe), not only the last keyframe's.
-//! - A new keyframe adds observations to the points it tracked, triangulates new points from
-//!   its unassigned features matched to those of the previous keyframes (DLT, checked for
-//!   cheirality, parallax and reprojection error), then refines the structure: each point
+//! - A new keyframe adds observations to the points it tracked and gets new points: a stereo
+//!   keyframe from its own stereo matches ([`LocalMap::add_point`]), a monocular one by
+//!   triangulating its unassigned features matched to those of the previous keyframes (DLT,
+//!   checked for cheirality, parallax and reprojection error); then the map refines the structure: each point
 //!   observed by two or more window keyframes is moved to minimise
 //!   `sum_k |pi(K T_ck_w P) - u_k|^2 / s_k^2` by Levenberg-Marquardt from a Gauss-Newton step
 //!   (poses fixed, `s_k` the observation's noise scale).
@@ -22,12 +24,16 @@ use vofront_robust::{levenberg_marquardt, Damping, LmConfig, LmError, LmProblem,
 
 use crate::odometry::feature_pixel;
 
+mod locate;
+
+pub(crate) use locate::{MapSearch, WIDE_WINDOW_FACTOR};
+
 /// Identifier of a map point.
-pub(super) type PointId = usize;
+pub(crate) type PointId = usize;
 
 /// A triangulated point.
 #[derive(Debug, Clone)]
-pub(super) struct MapPoint {
+pub(crate) struct MapPoint {
     /// World position (map units).
     pub position: Point3<f64>,
     /// The observation's descriptor with the smallest total distance to the others.
@@ -48,7 +54,7 @@ pub(super) struct MapPoint {
 
 /// A keyframe of the window.
 #[derive(Debug, Clone)]
-pub(super) struct MapKeyframe {
+pub(crate) struct MapKeyframe {
     /// Unique, increasing id.
     pub id: usize,
     /// Index of the frame it was made from (frames given to the tracker, from 0).
@@ -70,7 +76,7 @@ impl MapKeyframe {
 
 /// Thresholds of map maintenance.
 #[derive(Debug, Clone, Copy, PartialEq)]
-pub(super) struct MapRules {
+pub(crate) struct MapRules {
     /// Keyframes kept in the window.
     pub window: usize,
     /// Keyframes before the newest one that new points are triangulated against.
@@ -83,7 +89,7 @@ pub(super) struct MapRules {
 
 /// Keyframes and points; see the module documentation.
 #[derive(Debug, Clone, Default)]
-pub(super) struct LocalMap {
+pub(crate) struct LocalMap {
     /// Window of keyframes, oldest first.
     pub keyframes: VecDeque<MapKeyframe>,
     /// The points by id.
@@ -521,7 +527,7 @@ impl LmProblem for PointViews<'_> {
 /// The pyramid level at which a camera at distance `d` from point `p` sees it: the level of
 /// its descriptor's observation moved by `round(log(p.distance / d) / log(scale_factor))`
 /// (nearer is larger, so higher), within `0..=31` (ORB's level range).
-pub(super) fn predicted_level(p: &MapPoint, d: f64, scale_factor: f32) -> u8 {
+pub(crate) fn predicted_level(p: &MapPoint, d: f64, scale_factor: f32) -> u8 {
     let shift = (p.distance / d).ln() / f64::from(scale_factor).ln();
     let level = f64::from(p.level) + shift;
     if level.is_finite() {
@@ -533,14 +539,14 @@ pub(super) fn predicted_level(p: &MapPoint, d: f64, scale_factor: f32) -> u8 {
 
 /// Noise scale of feature `f`'s position: its pyramid level's scale (a keypoint of level `k`
 /// is located to about `scale_factor^k` pixels).
-pub(super) fn level_sigma(features: &Features, f: u32) -> f64 {
+pub(crate) fn level_sigma(features: &Features, f: u32) -> f64 {
     f64::from(features.scales()[f as usize])
 }
 
 /// The point (camera-a frame) seen at pixel `ua` in camera a and `ub` in camera b (noise
 /// scales `sa`, `sb`), with `T_ba` known: DLT, kept when in front of both, reprojecting within
 /// `max_reprojection_px` times the noise scale in each and with enough parallax.
-pub(super) fn triangulate_pair(
+pub(crate) fn triangulate_pair(
     camera: &Camera,
     t_ba: &Isometry3<f64>,
     (ua, ub): (&Vector2<f64>, &Vector2<f64>),

@@ -1,0 +1,161 @@
+//! The stereo front of a frame: both images in the rectified geometry, ORB on each, the left
+//! features matched along their rows, and the metric point of every matched left feature.
+
+use image::GrayImage;
+use nalgebra::{Isometry3, Point3, UnitQuaternion};
+use thiserror::Error;
+use vofront_core::rectify::{RectifyError, StereoRectification};
+use vofront_core::rig::Rig;
+use vofront_features::{match_stereo, FeatureError, Features, Orb, StereoConfig};
+use vofront_geometry::Camera;
+use vofront_image::{Image, ImageError, Remap};
+
+/// Largest rotation (radians) and pinhole difference (pixels) under which a rig counts as
+/// rectified already: its images are used as they are.
+const RECTIFIED_TOLERANCE: f64 = 1e-9;
+
+/// Why a stereo frame could not be prepared.
+#[derive(Debug, Error)]
+pub enum StereoFrameError {
+    /// The frame has no right image (load it with `Dataset::load_stereo`).
+    #[error("the frame has no right image")]
+    NoRightImage,
+    /// The rig cannot be rectified for images of this size.
+    #[error("rectification: {0}")]
+    Rectify(#[from] RectifyError),
+    /// A remap could not be built or applied.
+    #[error("rectification remap: {0}")]
+    Image(#[from] ImageError),
+    /// ORB or stereo matching failed.
+    #[error("features: {0}")]
+    Features(#[from] FeatureError),
+    /// The images are not the size the rectification was built for.
+    #[error("image is {got:?}, the rig was rectified for {want:?}")]
+    Size {
+        /// This frame's `(width, height)`.
+        got: (usize, usize),
+        /// The size of the first frame.
+        want: (usize, usize),
+    },
+}
+
+/// One frame seen by the rectified rig.
+pub(crate) struct StereoView {
+    /// ORB features of the rectified left image.
+    pub features: Features,
+    /// The metric point `P = Z K^-1 [u, v, 1]` (left rectified camera, metres) of each left
+    /// feature matched in the right image, `Z = f b / d`.
+    pub points: Vec<Option<Point3<f64>>>,
+    /// `(width, height)` of the rectified images, pixels.
+    pub size: (u32, u32),
+}
+
+/// The rig's rectification, built once for the first frame's size.
+pub(crate) struct Rectified {
+    /// The common pinhole of the rectified images (no distortion).
+    pub camera: Camera,
+    /// Focal length times baseline, pixel metres.
+    pub fb: f64,
+    /// `T_raw_rect`: rectified left-camera points into the raw left camera (`R_left^-1`).
+    pub t_raw_rect: Isometry3<f64>,
+    /// The remaps of the left and right images; `None` for a rig rectified already.
+    remaps: Option<[Remap; 2]>,
+    size: (usize, usize),
+}
+
+/// The 8-bit image of the library's image type (the one conversion of this module).
+fn to_image(gray: &GrayImage) -> Image<u8> {
+    Image::from_gray(gray)
+}
+
+/// ORB features of `image`.
+fn detect(orb: &Orb, image: &Image<u8>) -> Result<Features, StereoFrameError> {
+    let gray = image.to_gray().ok_or(FeatureError::InvalidConfig(
+        "stereo: image too large for the detector",
+    ))?;
+    Ok(orb.detect_and_describe(&gray)?)
+}
+
+impl Rectified {
+    /// The rectification of `rig` for `width x height` images: Bouguet's
+    /// ([`StereoRectification`]), its remaps skipped when both cameras have no distortion, the
+    /// same pinhole and parallel axes and the rectification is the identity.
+    pub fn new(rig: &Rig, (width, height): (usize, usize)) -> Result<Self, StereoFrameError> {
+        let rect = StereoRectification::new(rig, width, height)?;
+        let left = rig.left();
+        let same = |a: &Camera| {
+            let (p, q) = (a.pinhole, *rect.pinhole());
+            a.distortion.is_identity()
+                && [p.fx - q.fx, p.fy - q.fy, p.cx - q.cx, p.cy - q.cy]
+                    .iter()
+                    .all(|d| d.abs() < RECTIFIED_TOLERANCE)
+        };
+        let identity = rect.rotation_left().angle() < RECTIFIED_TOLERANCE
+            && rect.rotation_right().angle() < RECTIFIED_TOLERANCE;
+        let already = identity && same(left) && rig.right().is_some_and(same);
+        let remaps = if already {
+            None
+        } else {
+            let remap = |m: &vofront_core::UndistortMap| {
+                Remap::new((width, height), (m.width, m.height), &m.map_x, &m.map_y)
+            };
+            Some([remap(rect.map_left())?, remap(rect.map_right())?])
+        };
+        let rotation = UnitQuaternion::from_rotation_matrix(rect.rotation_left());
+        Ok(Self {
+            camera: Camera::pinhole(*rect.pinhole()),
+            fb: rect.pinhole().fx * rect.baseline(),
+            t_raw_rect: Isometry3::from_parts(Default::default(), rotation.inverse()),
+            remaps,
+            size: (width, height),
+        })
+    }
+
+    /// The frame's `left` and `right` images in the rectified geometry (bilinear, black where
+    /// the source is outside), ORB features of both, the left ones matched along their rows
+    /// ([`match_stereo`]) and given their metric points.
+    pub fn view(
+        &self,
+        orb: &Orb,
+        stereo: &StereoConfig,
+        left: &GrayImage,
+        right: &GrayImage,
+    ) -> Result<StereoView, StereoFrameError> {
+        let (left, right) = (to_image(left), to_image(right));
+        for image in [&left, &right] {
+            if image.size() != self.size {
+                return Err(StereoFrameError::Size {
+                    got: image.size(),
+                    want: self.size,
+                });
+            }
+        }
+        let (left, right) = match &self.remaps {
+            None => (left, right),
+            Some([ml, mr]) => (
+                ml.bilinear(&left.to_f32(), 0.0)?.to_u8(),
+                mr.bilinear(&right.to_f32(), 0.0)?.to_u8(),
+            ),
+        };
+        let (features, right_features) = rayon::join(|| detect(orb, &left), || detect(orb, &right));
+        let (features, right_features) = (features?, right_features?);
+        let matches = match_stereo(&features, &right_features, &left, &right, stereo)?;
+        let mut points = vec![None; features.len()];
+        let k = &self.camera.pinhole;
+        for m in matches {
+            let (u, v) = (
+                f64::from(features.xs()[m.left as usize]),
+                f64::from(features.ys()[m.left as usize]),
+            );
+            let z = m.depth(self.fb);
+            points[m.left as usize] =
+                Some(Point3::new((u - k.cx) / k.fx * z, (v - k.cy) / k.fy * z, z));
+        }
+        let size = (left.width() as u32, left.height() as u32);
+        Ok(StereoView {
+            features,
+            points,
+            size,
+        })
+    }
+}
