@@ -13,8 +13,9 @@
 
 use std::time::Instant;
 
+use vofront_core::Camera;
 use vofront_features::{match_descriptors, Features, Match, MatchConfig, Orb, OrbConfig};
-use vofront_geometry::{estimate_relative_pose, Camera, RelativePose, RelativePoseConfig};
+use vofront_geometry::{estimate_relative_pose, RelativePose, RelativePoseConfig};
 use vofront_image::Image;
 
 pub use crate::error::VoError;

@@ -4,7 +4,7 @@
 //! images are already undistorted), the KITTI odometry `calib.txt` P0 rows for the three
 //! calibration days, and the EuRoC MAV `cam0/sensor.yaml`.
 
-use vofront_geometry::camera::{Camera, Distortion, Lens, Pinhole};
+use vofront_core::camera::{Camera, Distortion, Lens, Pinhole};
 
 /// One named calibration.
 #[derive(Debug, Clone, Copy, PartialEq)]

@@ -10,11 +10,11 @@ use std::time::Instant;
 use nalgebra::Isometry3;
 use serde::Serialize;
 use thiserror::Error;
+use vofront_core::Camera;
 use vofront_direct::{
     align_se3, align_translation, DirectError, RgbdFrame, Se3Config, Se3Result, TranslationConfig,
     TranslationResult,
 };
-use vofront_geometry::Camera;
 use vofront_image::Image;
 use vofront_robust::Quality;
 

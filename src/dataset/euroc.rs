@@ -24,15 +24,15 @@
 use std::collections::HashMap;
 use std::path::{Path, PathBuf};
 
-use nalgebra::{Isometry3, Matrix3, Quaternion, Rotation3, Translation3, UnitQuaternion};
+use nalgebra::{Isometry3, Matrix3, Rotation3, Translation3, UnitQuaternion};
+use vofront_core::camera::{Camera, Distortion, KannalaBrandt, Lens, Pinhole};
 use vofront_core::rig::Rig;
-use vofront_geometry::camera::{Camera, Distortion, KannalaBrandt, Lens, Pinhole};
 
 use super::{
     csv_records, mono_rig, parse_error, read_text, CameraSource, Dataset, DatasetConfig,
     DatasetError, DatasetKind, FrameInfo,
 };
-use crate::trajectory::{parse_numbers, Trajectory};
+use crate::trajectory::{Trajectory, TrajectoryFile, TrajectoryFormat};
 
 /// Tolerance on `|R^T R - I|` for the rotation block of `T_BS` (published to ~1e-6).
 const ROTATION_TOLERANCE: f64 = 1e-3;
@@ -93,7 +93,7 @@ pub fn open(root: &Path, config: &DatasetConfig) -> Result<Dataset, DatasetError
     };
     let gt_path = root.join("mav0/state_groundtruth_estimate0/data.csv");
     let ground_truth = if gt_path.is_file() {
-        Some(read_ground_truth(&gt_path)?)
+        Some(TrajectoryFile::read(&gt_path, Some(TrajectoryFormat::Euroc), None)?.trajectory)
     } else {
         None
     };
@@ -280,38 +280,6 @@ fn rigid_from_rows(path: &Path, m: &[f64]) -> Result<Isometry3<f64>, DatasetErro
         Translation3::new(m[3], m[7], m[11]),
         UnitQuaternion::from_rotation_matrix(&Rotation3::from_matrix_unchecked(r)),
     ))
-}
-
-/// The body poses of `state_groundtruth_estimate0/data.csv`.
-fn read_ground_truth(path: &Path) -> Result<Trajectory, DatasetError> {
-    let poses = csv_records(path)?
-        .into_iter()
-        .map(|(line, record)| {
-            let fields: Vec<&str> = record.iter().collect();
-            if fields.len() < 8 {
-                return Err(parse_error(
-                    path,
-                    line,
-                    format!(
-                        "expected at least 8 fields `t px py pz qw qx qy qz`, found {}",
-                        fields.len()
-                    ),
-                ));
-            }
-            let t = seconds(nanoseconds(fields[0]).map_err(|m| parse_error(path, line, m))?);
-            let v = parse_numbers(&fields[1..8]).map_err(|m| parse_error(path, line, m))?;
-            let q = Quaternion::new(v[3], v[4], v[5], v[6]);
-            if q.norm() < 1e-6 {
-                return Err(parse_error(path, line, "zero quaternion"));
-            }
-            let pose = Isometry3::from_parts(
-                Translation3::new(v[0], v[1], v[2]),
-                UnitQuaternion::from_quaternion(q),
-            );
-            Ok((t, pose))
-        })
-        .collect::<Result<Vec<_>, _>>()?;
-    Ok(Trajectory::new(poses))
 }
 
 #[cfg(test)]

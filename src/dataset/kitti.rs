@@ -23,8 +23,8 @@
 use std::path::{Path, PathBuf};
 
 use nalgebra::Isometry3;
+use vofront_core::camera::{Camera, Pinhole};
 use vofront_core::rig::Rig;
-use vofront_geometry::camera::{Camera, Pinhole};
 
 use super::{
     mono_rig, parse_error, read_text, CameraSource, Dataset, DatasetConfig, DatasetError,

@@ -52,8 +52,8 @@ use std::path::{Path, PathBuf};
 use image::DynamicImage;
 use nalgebra::Isometry3;
 use thiserror::Error;
+use vofront_core::camera::{Camera, CameraError};
 use vofront_core::rig::{Rig, RigError};
-use vofront_geometry::camera::{Camera, CameraError};
 use vofront_image::Image;
 
 use crate::trajectory::{Trajectory, TrajectoryError};

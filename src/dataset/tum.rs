@@ -12,7 +12,7 @@
 
 use std::path::Path;
 
-use vofront_geometry::camera::{Camera, Distortion, Pinhole};
+use vofront_core::camera::{Camera, Distortion, Pinhole};
 
 use super::{
     parse_error, read_text, CameraSource, Dataset, DatasetConfig, DatasetError, DatasetKind,

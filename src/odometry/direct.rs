@@ -12,8 +12,8 @@ use std::sync::Arc;
 use std::time::Instant;
 
 use nalgebra::Isometry3;
+use vofront_core::Camera;
 use vofront_direct::{DirectError, RgbdFrame, Se3Config, Se3Reference, Undistorter};
-use vofront_geometry::Camera;
 use vofront_image::Image;
 use vofront_robust::{QualityConfig, Verdict};
 

@@ -13,9 +13,9 @@
 use std::time::Instant;
 
 use nalgebra::{Isometry3, Point3};
+use vofront_core::Camera;
 use vofront_features::{Features, MatchConfig, Orb, OrbConfig};
 use vofront_geometry::pnp::PnpConfig;
-use vofront_geometry::Camera;
 
 use super::keyframe::{KeyframePolicy, KeyframeView};
 use super::{

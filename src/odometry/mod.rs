@@ -42,9 +42,9 @@ pub mod stereo;
 use std::time::Instant;
 
 use nalgebra::{Isometry3, Point3, Vector2};
+use vofront_core::Camera;
 use vofront_features::{match_descriptors, match_windowed, Features, Match, MatchConfig};
 use vofront_geometry::pnp::{solve_pnp_ransac_with_sigmas, PnpConfig, PnpResult};
-use vofront_geometry::Camera;
 use vofront_robust::{Quality, Verdict};
 
 use crate::dataset::Frame;

@@ -8,7 +8,7 @@
 use std::collections::VecDeque;
 
 use nalgebra::Isometry3;
-use vofront_geometry::lie::normalized;
+use vofront_core::lie::normalized;
 
 /// Remembers the last two camera poses and extrapolates the next one.
 #[derive(Debug, Clone, Default)]

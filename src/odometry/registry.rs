@@ -32,10 +32,10 @@ use std::path::PathBuf;
 use std::str::FromStr;
 
 use thiserror::Error;
+use vofront_core::camera::Pinhole;
 use vofront_core::rig::Rig;
+use vofront_core::Camera;
 use vofront_features::FeatureError;
-use vofront_geometry::camera::Pinhole;
-use vofront_geometry::Camera;
 
 use super::direct::{DirectTracker, DirectTrackerConfig};
 use super::feature_rgbd::{FeatureRgbdConfig, FeatureRgbdTracker};

@@ -4,7 +4,7 @@ use std::path::PathBuf;
 
 use clap::builder::{PossibleValue, PossibleValuesParser, TypedValueParser};
 use clap::{Args, Parser, Subcommand, ValueEnum};
-use vofront::geometry::camera::{Camera, Distortion, KannalaBrandt, Lens, Pinhole};
+use vofront::core::camera::{Camera, Distortion, KannalaBrandt, Lens, Pinhole};
 use vofront::odometry::registry::{default_camera, TrackerKind};
 use vofront::presets::{camera_preset, principal_point_warning, PRESETS};
 use vofront::trajectory::TrajectoryFormat;

@@ -4,12 +4,12 @@
 use std::path::Path;
 
 use nalgebra::Isometry3;
+use vofront::core::lie::{direction_angle_deg, rotation_angle_deg};
 use vofront::dataset::Dataset;
 use vofront::direct::{align_translation, TranslationConfig};
 use vofront::fixtures::image2d::{textured_image, to_gray8, translation, warped_textured_image};
 use vofront::fixtures::scene::{default_camera, pose_wc, room_trajectory, Scene};
 use vofront::fixtures::tum::write_tum_sequence;
-use vofront::geometry::lie::{direction_angle_deg, rotation_angle_deg};
 use vofront::odometry::registry::{Session, TrackerKind, TrackerOptions};
 
 use vofront::two_view::Method;
@@ -100,7 +100,7 @@ pub fn run() -> Result<(), String> {
 }
 
 /// Writes a rendered room sequence as a TUM RGB-D folder and tracks it with every method.
-fn run_sequence(room: &Scene, camera: vofront::geometry::Camera) -> Result<(), String> {
+fn run_sequence(room: &Scene, camera: vofront::core::Camera) -> Result<(), String> {
     let dir = Path::new(OUT_DIR).join("room_sequence");
     write_tum_sequence(
         &dir,

@@ -14,9 +14,9 @@ use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
 use std::sync::Arc;
 
 use indicatif::{ProgressBar, ProgressStyle};
+use vofront::core::{Camera, Lens};
 use vofront::dataset::{Dataset, DatasetConfig};
 use vofront::eval::{plot::write_plot, AteResult};
-use vofront::geometry::{Camera, Lens};
 use vofront::odometry::graph::G2oSink;
 use vofront::odometry::registry::{Evaluation, Session, TrackerOptions};
 use vofront::odometry::run::{

@@ -2,9 +2,9 @@
 //! trackers.
 
 use nalgebra::{Isometry3, Point3};
+use vofront_core::Camera;
 use vofront_features::{Features, MatchConfig};
 use vofront_geometry::pnp::{PnpConfig, PnpResult};
-use vofront_geometry::Camera;
 
 use crate::odometry::{Located, PointLocator};
 use crate::robust::median_in_place;

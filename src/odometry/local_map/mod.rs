@@ -17,9 +17,9 @@
 use std::collections::{HashMap, VecDeque};
 
 use nalgebra::{Isometry3, Point3, Vector2, Vector3};
+use vofront_core::Camera;
 use vofront_features::{match_descriptors, Descriptor, Feature, Features, MatchConfig};
 use vofront_geometry::triangulate::{parallax_deg, triangulate_dlt};
-use vofront_geometry::Camera;
 use vofront_robust::{levenberg_marquardt, Damping, LmConfig, LmError, LmProblem, NormalEquations};
 
 use crate::odometry::feature_pixel;

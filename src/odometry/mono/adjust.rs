@@ -9,8 +9,8 @@
 //! only the pair that triangulated them. Observations beyond the adjustment's chi-square gate
 //! are unlinked from their points; points left with no observation are removed.
 
+use vofront_core::Camera;
 use vofront_geometry::bundle::{bundle_adjust, BundleConfig, BundleProblem, Observation};
-use vofront_geometry::Camera;
 
 use crate::odometry::feature_pixel;
 use crate::odometry::local_map::{level_sigma, LocalMap, PointId};
@@ -122,9 +122,9 @@ impl LocalMap {
 #[cfg(test)]
 mod tests {
     use nalgebra::{Isometry3, Point3, Vector2, Vector3};
+    use vofront_core::{Camera, Pinhole};
     use vofront_features::Descriptor;
     use vofront_geometry::bundle::BundleConfig;
-    use vofront_geometry::{Camera, Pinhole};
 
     use super::super::tests::level0_features;
     use super::super::MonoConfig;

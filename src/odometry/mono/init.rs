@@ -12,8 +12,9 @@
 //! points matched by descriptor to the new map's points.
 
 use nalgebra::{Isometry3, Point3};
+use vofront_core::Camera;
 use vofront_features::{match_descriptors, Features, MatchConfig};
-use vofront_geometry::{estimate_relative_pose, Camera, RelativePoseConfig};
+use vofront_geometry::{estimate_relative_pose, RelativePoseConfig};
 
 use crate::odometry::local_map::LocalMap;
 use crate::odometry::{feature_pixel, reasons_text, FrameQuality};

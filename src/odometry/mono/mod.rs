@@ -51,8 +51,8 @@ mod tests;
 use std::time::Instant;
 
 use nalgebra::{Isometry3, Point3};
+use vofront_core::Camera;
 use vofront_features::{Features, Match, Orb};
-use vofront_geometry::Camera;
 
 use super::coast::Coasting;
 use super::keyframe::KeyframeView;
@@ -101,7 +101,7 @@ enum State {
 /// use vofront::dataset::Frame;
 /// use vofront::fixtures::driving::{DrivingSequence, FRAME_RATE};
 /// use vofront::fixtures::image2d::to_gray8;
-/// use vofront::geometry::lie::direction_angle_deg;
+/// use vofront::core::lie::direction_angle_deg;
 /// use vofront::odometry::mono::{MonoConfig, MonoTracker};
 /// use vofront::odometry::{TrackStatus, Tracker};
 ///

@@ -3,10 +3,10 @@
 use std::error::Error;
 use std::time::Instant;
 
+use vofront_core::lie::direction_angle_deg;
 use vofront_features::{Descriptor, Features};
 use vofront_fixtures::driving::{DrivingSequence, FRAME_RATE};
 use vofront_fixtures::image2d::to_gray8;
-use vofront_geometry::lie::direction_angle_deg;
 
 use super::init::initialise;
 use super::{MonoConfig, MonoTracker, State};

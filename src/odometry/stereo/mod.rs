@@ -36,8 +36,8 @@ use std::time::Instant;
 use nalgebra::{Isometry3, Point3};
 use thiserror::Error;
 use vofront_core::rig::Rig;
+use vofront_core::Camera;
 use vofront_features::{FeatureError, Features, Match, Orb};
-use vofront_geometry::Camera;
 
 use super::coast::Coasting;
 use super::keyframe::KeyframeView;
@@ -158,10 +158,7 @@ impl StereoTracker {
         let right = frame.right().ok_or(StereoFrameError::NoRightImage)?;
         let rectified = match self.rectified.take() {
             Some(r) => r,
-            None => {
-                let (w, h) = frame.image().dimensions();
-                Rectified::new(&self.rig, (w as usize, h as usize))?
-            }
+            None => Rectified::new(&self.rig, frame.image().size())?,
         };
         let view = rectified.view(&self.orb, &self.cfg.stereo, frame.image(), right);
         let camera = rectified.camera;

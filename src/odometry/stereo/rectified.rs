@@ -1,13 +1,12 @@
 //! The stereo front of a frame: both images in the rectified geometry, ORB on each, the left
 //! features matched along their rows, and the metric point of every matched left feature.
 
-use image::GrayImage;
 use nalgebra::{Isometry3, Point3, UnitQuaternion};
 use thiserror::Error;
 use vofront_core::rectify::{RectifyError, StereoRectification};
 use vofront_core::rig::Rig;
+use vofront_core::Camera;
 use vofront_features::{match_stereo, FeatureError, Features, Orb, StereoConfig};
-use vofront_geometry::Camera;
 use vofront_image::{Image, ImageError, Remap};
 
 /// Largest rotation (radians) and pinhole difference (pixels) under which a rig counts as
@@ -47,7 +46,7 @@ pub(crate) struct StereoView {
     /// feature matched in the right image, `Z = f b / d`.
     pub points: Vec<Option<Point3<f64>>>,
     /// `(width, height)` of the rectified images, pixels.
-    pub size: (u32, u32),
+    pub size: (usize, usize),
 }
 
 /// The rig's rectification, built once for the first frame's size.
@@ -63,17 +62,9 @@ pub(crate) struct Rectified {
     size: (usize, usize),
 }
 
-/// The 8-bit image of the library's image type (the one conversion of this module).
-fn to_image(gray: &GrayImage) -> Image<u8> {
-    Image::from_gray(gray)
-}
-
 /// ORB features of `image`.
 fn detect(orb: &Orb, image: &Image<u8>) -> Result<Features, StereoFrameError> {
-    let gray = image.to_gray().ok_or(FeatureError::InvalidConfig(
-        "stereo: image too large for the detector",
-    ))?;
-    Ok(orb.detect_and_describe(&gray)?)
+    Ok(orb.detect_and_describe(image)?)
 }
 
 impl Rectified {
@@ -118,11 +109,10 @@ impl Rectified {
         &self,
         orb: &Orb,
         stereo: &StereoConfig,
-        left: &GrayImage,
-        right: &GrayImage,
+        left: &Image<u8>,
+        right: &Image<u8>,
     ) -> Result<StereoView, StereoFrameError> {
-        let (left, right) = (to_image(left), to_image(right));
-        for image in [&left, &right] {
+        for image in [left, right] {
             if image.size() != self.size {
                 return Err(StereoFrameError::Size {
                     got: image.size(),
@@ -130,16 +120,20 @@ impl Rectified {
                 });
             }
         }
+        let remapped;
         let (left, right) = match &self.remaps {
             None => (left, right),
-            Some([ml, mr]) => (
-                ml.bilinear(&left.to_f32(), 0.0)?.to_u8(),
-                mr.bilinear(&right.to_f32(), 0.0)?.to_u8(),
-            ),
+            Some([ml, mr]) => {
+                remapped = (
+                    ml.bilinear(&left.to_f32(), 0.0)?.to_u8(),
+                    mr.bilinear(&right.to_f32(), 0.0)?.to_u8(),
+                );
+                (&remapped.0, &remapped.1)
+            }
         };
-        let (features, right_features) = rayon::join(|| detect(orb, &left), || detect(orb, &right));
+        let (features, right_features) = rayon::join(|| detect(orb, left), || detect(orb, right));
         let (features, right_features) = (features?, right_features?);
-        let matches = match_stereo(&features, &right_features, &left, &right, stereo)?;
+        let matches = match_stereo(&features, &right_features, left, right, stereo)?;
         let mut points = vec![None; features.len()];
         let k = &self.camera.pinhole;
         for m in matches {
@@ -151,11 +145,10 @@ impl Rectified {
             points[m.left as usize] =
                 Some(Point3::new((u - k.cx) / k.fx * z, (v - k.cy) / k.fy * z, z));
         }
-        let size = (left.width() as u32, left.height() as u32);
         Ok(StereoView {
             features,
             points,
-            size,
+            size: left.size(),
         })
     }
 }
