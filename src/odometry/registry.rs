@@ -32,7 +32,6 @@ use std::path::PathBuf;
 use std::str::FromStr;
 
 use thiserror::Error;
-use vofront_core::camera::Pinhole;
 use vofront_core::rig::Rig;
 use vofront_core::Camera;
 use vofront_features::FeatureError;
@@ -273,12 +272,7 @@ pub enum OdometryError {
 /// The camera of the `tum-ros` preset (ROS default for a Kinect, 640x480):
 /// `fx = fy = 525`, `(cx, cy) = (319.5, 239.5)` pixels, no distortion.
 pub fn default_camera() -> Camera {
-    Camera::pinhole(Pinhole {
-        fx: 525.0,
-        fy: 525.0,
-        cx: 319.5,
-        cy: 239.5,
-    })
+    crate::presets::PRESETS[0].camera
 }
 
 /// Where the camera of a [`Session`] came from; [`fmt::Display`] says so in one phrase.

@@ -18,7 +18,7 @@ use std::collections::{HashMap, VecDeque};
 
 use nalgebra::{Isometry3, Point3, Vector2, Vector3};
 use vofront_core::Camera;
-use vofront_features::{match_descriptors, Descriptor, Feature, Features, MatchConfig};
+use vofront_features::{match_descriptors, Descriptor, Feature, Features, Match, MatchConfig};
 use vofront_geometry::triangulate::{parallax_deg, triangulate_dlt};
 use vofront_robust::{levenberg_marquardt, Damping, LmConfig, LmError, LmProblem, NormalEquations};
 
@@ -268,6 +268,29 @@ impl LocalMap {
         if let Some(p) = self.points.get_mut(&point) {
             p.found += 1;
         }
+    }
+
+    /// The PnP inliers of a location as `(match, point, position)`: `matches[i]` (query = a
+    /// local point's index in `ids`) with its position `world[i]`, kept where `inliers[i]`;
+    /// each of their points is marked found.
+    pub fn keep_inliers(
+        &mut self,
+        matches: &[Match],
+        world: &[Point3<f64>],
+        inliers: &[bool],
+        ids: &[PointId],
+    ) -> Vec<(Match, PointId, Point3<f64>)> {
+        let tracked: Vec<(Match, PointId, Point3<f64>)> = matches
+            .iter()
+            .zip(world)
+            .zip(inliers)
+            .filter(|(_, inlier)| **inlier)
+            .map(|((m, p), _)| (*m, ids[m.query as usize], *p))
+            .collect();
+        for (_, id, _) in &tracked {
+            self.found(*id);
+        }
+        tracked
     }
 
     /// Triangulates new points between the newest keyframe and up to `rules.triangulation_

@@ -52,12 +52,12 @@ use std::time::Instant;
 
 use nalgebra::{Isometry3, Point3};
 use vofront_core::Camera;
-use vofront_features::{Features, Match, Orb};
+use vofront_features::{Features, Orb};
 
 use super::coast::Coasting;
 use super::keyframe::KeyframeView;
 use super::late::{LateEstimates, Waiting};
-use super::local_map::{LocalMap, MapRules, PointId, WIDE_WINDOW_FACTOR};
+use super::local_map::{LocalMap, MapRules, WIDE_WINDOW_FACTOR};
 use super::lost::LostMap;
 use super::{ms_since, FrameEstimate, FrameQuality, Located, PointLocator, TrackStatus, Tracker};
 use crate::dataset::Frame;
@@ -214,16 +214,7 @@ impl MonoTracker {
             }
         };
         let mut t_wc = fit.pose.inverse();
-        let tracked: Vec<(Match, PointId, Point3<f64>)> = matches
-            .iter()
-            .zip(&world)
-            .zip(&fit.inliers)
-            .filter(|(_, inlier)| **inlier)
-            .map(|((m, p), _)| (*m, ids[m.query as usize], *p))
-            .collect();
-        for (_, id, _) in &tracked {
-            map.found(*id);
-        }
+        let tracked = map.keep_inliers(&matches, &world, &fit.inliers, &ids);
         let Some(last) = map.last() else {
             return FrameEstimate::lost(predicted, "empty map".into(), start);
         };

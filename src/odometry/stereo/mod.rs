@@ -37,11 +37,11 @@ use nalgebra::{Isometry3, Point3};
 use thiserror::Error;
 use vofront_core::rig::Rig;
 use vofront_core::Camera;
-use vofront_features::{FeatureError, Features, Match, Orb};
+use vofront_features::{FeatureError, Features, Orb};
 
 use super::coast::Coasting;
 use super::keyframe::KeyframeView;
-use super::local_map::{LocalMap, MapRules, MapSearch, PointId, WIDE_WINDOW_FACTOR};
+use super::local_map::{LocalMap, MapRules, MapSearch, WIDE_WINDOW_FACTOR};
 use super::lost::LostMap;
 use super::{ms_since, FrameEstimate, FrameQuality, Located, PointLocator, TrackStatus, Tracker};
 use crate::dataset::Frame;
@@ -273,16 +273,7 @@ impl StereoTracker {
             }
         };
         let t_wc = fit.pose.inverse();
-        let tracked: Vec<(Match, PointId, Point3<f64>)> = matches
-            .iter()
-            .zip(&world)
-            .zip(&fit.inliers)
-            .filter(|(_, inlier)| **inlier)
-            .map(|((m, p), _)| (*m, ids[m.query as usize], *p))
-            .collect();
-        for (_, id, _) in &tracked {
-            map.found(*id);
-        }
+        let tracked = map.keep_inliers(&matches, &world, &fit.inliers, &ids);
         let Some(last) = map.last() else {
             return FrameEstimate::lost(predicted, "empty map".into(), start);
         };
