@@ -65,7 +65,8 @@ pub fn scaled_condition<const N: usize>(h: &SMatrix<f64, N, N>) -> f64 {
 /// Solves `(H + lambda D) d = -g` after checking that `H` is not degenerate.
 ///
 /// `max_condition` bounds the scaled condition number of `H` (1e10 is a sensible default:
-/// a well-posed 6-DoF pose has 1e2..1e5).
+/// a well-posed 6-DoF pose has 1e2..1e5); `f64::INFINITY` skips the check (its eigenvalue
+/// sweep), leaving only the Cholesky factorisation to fail.
 ///
 /// ```
 /// use nalgebra::{Matrix2, Vector2};
@@ -88,12 +89,16 @@ pub fn solve_damped<const N: usize>(
     if h.iter().chain(g.iter()).any(|v| !v.is_finite()) {
         return Err(SolveError::NotFinite);
     }
-    let condition = scaled_condition(h);
-    if condition.is_nan() || condition > max_condition {
-        return Err(SolveError::Degenerate {
-            condition,
-            limit: max_condition,
-        });
+    // An infinite bound asks for no check: the eigenvalues are then computed only to report a
+    // failed factorisation.
+    if max_condition.is_finite() {
+        let condition = scaled_condition(h);
+        if condition.is_nan() || condition > max_condition {
+            return Err(SolveError::Degenerate {
+                condition,
+                limit: max_condition,
+            });
+        }
     }
     let mut damped = *h;
     for i in 0..N {
@@ -102,8 +107,8 @@ pub fn solve_damped<const N: usize>(
             Damping::Diagonal => lambda * h[(i, i)],
         };
     }
-    let chol = damped.cholesky().ok_or(SolveError::Degenerate {
-        condition,
+    let chol = damped.cholesky().ok_or_else(|| SolveError::Degenerate {
+        condition: scaled_condition(h),
         limit: max_condition,
     })?;
     Ok(-chol.solve(g))
