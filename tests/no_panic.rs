@@ -268,7 +268,8 @@ proptest! {
             camera: cam,
             poses: poses.iter().map(|&(x, y, z)| Isometry3::new(Vector3::new(x, y, z), Vector3::new(0.01 * y, 0.0, 0.01 * x))).collect(),
             points: points.iter().map(|&(x, y, z)| Point3::new(x, y, z)).collect(),
-            observations: observations.iter().map(|&(pose, point, u, v)| Observation { pose, point, pixel: Vector2::new(u, v), sigma: 1.0 }).collect(),
+            observations: observations.iter().map(|&(pose, point, u, v)| Observation { pose, point, pixel: Vector2::new(u, v), sigma: 1.0, right: (point % 2 == 0).then_some(u - v) }).collect(),
+            baseline: Some(sigma),
         };
         let cfg = BundleConfig { fixed_poses: fixed, sigma_px: sigma, ..BundleConfig::default() };
         no_panic("bundle_adjust", || bundle_adjust(&mut problem, &cfg))?;

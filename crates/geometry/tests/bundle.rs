@@ -247,6 +247,7 @@ fn bad_input_gives_typed_errors() {
         point: 0,
         pixel: Vector2::zeros(),
         sigma: 1.0,
+        right: None,
     });
     assert!(matches!(
         bundle_adjust(&mut p, &BundleConfig::default()),

@@ -24,8 +24,10 @@ use vofront_robust::{levenberg_marquardt, Damping, LmConfig, LmError, LmProblem,
 
 use crate::odometry::feature_pixel;
 
+mod adjust;
 mod locate;
 
+pub(crate) use adjust::Adjusted;
 pub(crate) use locate::{MapSearch, WIDE_WINDOW_FACTOR};
 
 /// Identifier of a map point.
@@ -65,6 +67,9 @@ pub(crate) struct MapKeyframe {
     pub features: Features,
     /// The map point of each feature.
     pub point_of: Vec<Option<PointId>>,
+    /// Column of each feature in the right image of a rectified stereo rig, pixels (`None`:
+    /// not matched; empty for a monocular keyframe).
+    pub right: Vec<Option<f64>>,
 }
 
 impl MapKeyframe {
@@ -156,6 +161,7 @@ impl LocalMap {
             t_wc,
             features,
             point_of: vec![None; n],
+            right: Vec::new(),
         });
         self.next_keyframe += 1;
         self.keyframes.len() - 1

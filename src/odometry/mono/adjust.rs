@@ -10,10 +10,9 @@
 //! are unlinked from their points; points left with no observation are removed.
 
 use vofront_core::Camera;
-use vofront_geometry::bundle::{bundle_adjust, BundleConfig, BundleProblem, Observation};
+use vofront_geometry::bundle::BundleConfig;
 
-use crate::odometry::feature_pixel;
-use crate::odometry::local_map::{level_sigma, LocalMap, PointId};
+use crate::odometry::local_map::{Adjusted, LocalMap};
 
 /// Keyframes held fixed, the oldest of the window.
 ///
@@ -27,95 +26,15 @@ use crate::odometry::local_map::{level_sigma, LocalMap, PointId};
 /// the path. Four fixed (one free keyframe) is worse on all three.
 const FIXED_KEYFRAMES: usize = 3;
 
-/// What one local adjustment did.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub(crate) struct Adjusted {
-    /// Points refined.
-    pub points: usize,
-    /// Observations unlinked as outliers.
-    pub culled: usize,
-    /// Reprojection rmse of the final solve, pixels.
-    pub rmse_px: f64,
-}
-
 impl LocalMap {
-    /// Runs the local bundle adjustment (see the module documentation) and writes the refined
-    /// poses and points back; `None` (map unchanged) when the window has no free keyframe, the
-    /// adjustment fails (too few observations, a degenerate system) or it would unlink more
-    /// than half of the newest keyframe's observations.
+    /// The monocular window's local bundle adjustment (see the module documentation):
+    /// [`LocalMap::adjust_window`] with the [`FIXED_KEYFRAMES`] oldest keyframes held.
     pub fn adjust(&mut self, camera: &Camera, cfg: &BundleConfig) -> Option<Adjusted> {
-        if self.keyframes.len() <= FIXED_KEYFRAMES {
-            return None;
-        }
         let cfg = BundleConfig {
             fixed_poses: FIXED_KEYFRAMES,
             ..*cfg
         };
-        let mut ids: Vec<PointId> = self
-            .points
-            .iter()
-            .filter(|(_, p)| p.observations.len() >= 2)
-            .map(|(&id, _)| id)
-            .collect();
-        ids.sort_unstable();
-        let mut problem = BundleProblem {
-            camera: *camera,
-            poses: self.keyframes.iter().map(|k| k.t_wc.inverse()).collect(),
-            points: ids.iter().map(|id| self.points[id].position).collect(),
-            observations: Vec::new(),
-        };
-        // (point id, keyframe id, feature) of each observation, in the problem's order.
-        let mut links = Vec::new();
-        for (j, id) in ids.iter().enumerate() {
-            for &(kid, f) in &self.points[id].observations {
-                let Some(pose) = self.index_of(kid) else {
-                    continue;
-                };
-                let features = &self.keyframes[pose].features;
-                problem.observations.push(Observation {
-                    pose,
-                    point: j,
-                    pixel: feature_pixel(features, f),
-                    sigma: level_sigma(features, f),
-                });
-                links.push((*id, kid, f));
-            }
-        }
-        let report = bundle_adjust(&mut problem, &cfg).ok()?;
-        // The newest keyframe was accepted on its PnP consensus: an adjustment that calls most
-        // of its observations outliers contradicts the evidence that made it (a collapsed
-        // gate, a degenerate window) and is not applied.
-        let newest = self.keyframes.back().map(|k| k.id);
-        let of_newest = |o: &usize| Some(links[*o].1) == newest;
-        let newest_links = (0..links.len()).filter(of_newest).count();
-        let newest_culled = report.culled.iter().filter(|o| of_newest(o)).count();
-        if 2 * newest_culled > newest_links {
-            return None;
-        }
-        for (kf, t_cw) in self.keyframes.iter_mut().zip(&problem.poses) {
-            kf.t_wc = t_cw.inverse();
-        }
-        for (id, position) in ids.iter().zip(&problem.points) {
-            if let Some(p) = self.points.get_mut(id) {
-                p.position = *position;
-            }
-        }
-        for &o in &report.culled {
-            let (id, kid, f) = links[o];
-            self.unobserve(id, kid, f);
-            if self
-                .points
-                .get(&id)
-                .is_some_and(|p| p.observations.is_empty())
-            {
-                self.remove_point(id);
-            }
-        }
-        Some(Adjusted {
-            points: ids.len(),
-            culled: report.culled.len(),
-            rmse_px: report.rmse_px,
-        })
+        self.adjust_window(camera, None, &cfg)
     }
 }
 

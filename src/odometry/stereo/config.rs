@@ -1,10 +1,12 @@
 //! Settings of the stereo tracker.
 
 use vofront_features::{MatchConfig, OrbConfig, StereoConfig};
+use vofront_geometry::bundle::BundleConfig;
 use vofront_geometry::pnp::PnpConfig;
 use vofront_geometry::RansacConfig;
 
 use crate::odometry::keyframe::KeyframePolicy;
+use crate::odometry::mono::KEYPOINT_QUANTISATION_PX;
 
 /// Settings of [`StereoTracker`](super::StereoTracker).
 #[derive(Debug, Clone)]
@@ -38,6 +40,10 @@ pub struct StereoTrackerConfig {
     /// Largest reprojection error of a point in any of its observations, pixels (times the
     /// observation's level scale).
     pub max_reprojection_px: f64,
+    /// Local bundle adjustment after each keyframe, with stereo observations `(u_l, v_l, u_r)`
+    /// (`None`: off); its `fixed_poses` oldest keyframes are held (one is the gauge: the
+    /// stereo baseline fixes the scale).
+    pub local_ba: Option<BundleConfig>,
 }
 
 impl Default for StereoTrackerConfig {
@@ -75,6 +81,13 @@ impl Default for StereoTrackerConfig {
             min_map_points: 50,
             window: 5,
             max_reprojection_px: 2.0,
+            // As the monocular tracker's: the gate's scale floored at ORB's whole-pixel
+            // keypoint quantisation.
+            local_ba: Some(BundleConfig {
+                min_sigma_px: KEYPOINT_QUANTISATION_PX,
+                fixed_poses: 1,
+                ..BundleConfig::default()
+            }),
         }
     }
 }

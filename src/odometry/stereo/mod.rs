@@ -197,9 +197,13 @@ impl StereoTracker {
     ) -> FrameEstimate {
         let mut map = LocalMap::default();
         let StereoView {
-            features, points, ..
+            features,
+            points,
+            right,
+            ..
         } = view;
         let k = map.push_keyframe(t_wc, features, self.frame);
+        map.keyframes[k].right = right;
         let made = Self::add_stereo_points(&mut map, k, &points);
         if made < self.cfg.min_map_points {
             let why = VoError::TooFew {
@@ -296,16 +300,25 @@ impl StereoTracker {
             ms: 0.0,
             ..FrameQuality::of_pnp(&fit, matches.len())
         };
+        let mut t_wc = t_wc;
         let reference = if keyframe {
             let StereoView {
-                features, points, ..
+                features,
+                points,
+                right,
+                ..
             } = view;
             let k = map.push_keyframe(t_wc, features, self.frame);
+            map.keyframes[k].right = right;
             for (m, id, _) in &tracked {
                 map.observe(*id, k, m.train);
             }
             Self::add_stereo_points(&mut map, k, &points);
             map.maintain(camera, &self.map_rules());
+            if let (Some(ba), Some(r)) = (&self.cfg.local_ba, &self.rectified) {
+                map.adjust_window(camera, Some(r.baseline), ba);
+            }
+            t_wc = map.last().map_or(t_wc, |kf| kf.t_wc);
             None
         } else {
             Some(reference)

@@ -45,6 +45,8 @@ pub(crate) struct StereoView {
     /// The metric point `P = Z K^-1 [u, v, 1]` (left rectified camera, metres) of each left
     /// feature matched in the right image, `Z = f b / d`.
     pub points: Vec<Option<Point3<f64>>>,
+    /// The column in the rectified right image of each matched left feature, pixels.
+    pub right: Vec<Option<f64>>,
     /// `(width, height)` of the rectified images, pixels.
     pub size: (usize, usize),
 }
@@ -55,6 +57,8 @@ pub(crate) struct Rectified {
     pub camera: Camera,
     /// Focal length times baseline, pixel metres.
     pub fb: f64,
+    /// Baseline, metres: the rectified right camera sits at `x = +baseline` in the left one.
+    pub baseline: f64,
     /// `T_raw_rect`: rectified left-camera points into the raw left camera (`R_left^-1`).
     pub t_raw_rect: Isometry3<f64>,
     /// The remaps of the left and right images; `None` for a rig rectified already.
@@ -96,6 +100,7 @@ impl Rectified {
         Ok(Self {
             camera: Camera::pinhole(*rect.pinhole()),
             fb: rect.pinhole().fx * rect.baseline(),
+            baseline: rect.baseline(),
             t_raw_rect: Isometry3::from_parts(Default::default(), rotation.inverse()),
             remaps,
             size: (width, height),
@@ -135,6 +140,7 @@ impl Rectified {
         let (features, right_features) = (features?, right_features?);
         let matches = match_stereo(&features, &right_features, left, right, stereo)?;
         let mut points = vec![None; features.len()];
+        let mut right = vec![None; features.len()];
         let k = &self.camera.pinhole;
         for m in matches {
             let (u, v) = (
@@ -142,12 +148,14 @@ impl Rectified {
                 f64::from(features.ys()[m.left as usize]),
             );
             let z = m.depth(self.fb);
+            right[m.left as usize] = Some(f64::from(m.right_x));
             points[m.left as usize] =
                 Some(Point3::new((u - k.cx) / k.fx * z, (v - k.cy) / k.fy * z, z));
         }
         Ok(StereoView {
             features,
             points,
+            right,
             size: left.size(),
         })
     }

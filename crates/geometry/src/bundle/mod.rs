@@ -7,7 +7,15 @@
 //! `r_o = (pi(T_i P_j) - u_o) / s_o` in pixels through the full [`Camera`] model, with `s_o`
 //! the observation's relative noise scale ([`Observation::sigma`]: 1 at the finest keypoint
 //! level, `1.2^k` for an ORB keypoint of level `k`), so that the loss, the gate and the report
-//! are in pixels of a scale-1 observation; cost
+//! are in pixels of a scale-1 observation.
+//!
+//! **Stereo observations.** An observation of a rectified stereo rig also carries the column
+//! `u_r` at which the right camera saw the point ([`Observation::right`]); its residual gains
+//! a third row, ORB-SLAM2's stereo residual `(u_l, v_l, u_r)`:
+//! `r_o,3 = (pi(T_i P_j - b e_x)_x - u_r) / s_o` with `b` the rig's baseline
+//! ([`BundleProblem::baseline`], metres, the right camera at `x = +b` in the left one's frame):
+//! for a pinhole `u_r = u_l - f b / Z`, so the third row pins the depth. A monocular
+//! observation has the first two rows only. Cost
 //! `sum_o s^2 rho(|r_o| / s)` with `rho` a robust loss of `vofront_robust` and `s` its scale in
 //! pixels ([`BundleConfig::sigma_px`]). Each step eliminates the points (Schur complement on
 //! their 3x3 blocks, [`vofront_robust::schur`] with 6-dof pose and 3-dof point blocks) and
@@ -24,10 +32,11 @@
 //! front of its camera, culled ones included (so that the gate does not truncate its own
 //! sample), from residuals standardised by the share `1 - h_o` of the noise the solve left
 //! in them (one minus the leverage: a point seen twice absorbs three quarters of its four
-//! coordinates' noise): `sigma = max(min_sigma_px, 1.4826 median(|r_o,x|, |r_o,y|))` over
-//! the standardised `r_o / sqrt(1 - h_o)`. Observations with
+//! coordinates' noise): `sigma = max(min_sigma_px, 1.4826 median |r_o,c|)` over every
+//! coordinate `c` (two per monocular observation, three per stereo one) of the standardised
+//! `r_o / sqrt(1 - h_o)`. Observations with
 //! `|r_o|^2 > gate_chi2 (1 - h_o) sigma^2` (5.99: the 95% quantile of chi-square with two
-//! degrees of freedom) are culled, whether or not they took part in the solve; the window is
+//! degrees of freedom; [`BundleConfig::gate_chi2_stereo`], 7.81, for three) are culled, whether or not they took part in the solve; the window is
 //! solved again without them, up to [`BundleConfig::max_rounds`] solves. Observations behind
 //! a camera are culled too. Points left with fewer than two usable observations are not moved.
 //!
@@ -49,11 +58,11 @@
 //! for (i, pose) in poses.iter().enumerate() {
 //!     for (j, p) in points.iter().enumerate() {
 //!         let pixel = camera.project(&(pose * p).coords).unwrap();
-//!         observations.push(Observation { pose: i, point: j, pixel, sigma: 1.0 });
+//!         observations.push(Observation { pose: i, point: j, pixel, sigma: 1.0, right: None });
 //!     }
 //! }
 //! let truth = poses[2];
-//! let mut problem = BundleProblem { camera, poses, points, observations };
+//! let mut problem = BundleProblem { camera, poses, points, observations, baseline: None };
 //! problem.poses[2] = Isometry3::new(Vector3::new(-0.43, 0.02, 0.01), Vector3::new(0.0, 0.01, 0.0));
 //! let report = bundle_adjust(&mut problem, &BundleConfig::default()).unwrap();
 //! assert!((problem.poses[2].translation.vector - truth.translation.vector).norm() < 1e-6);
@@ -62,7 +71,7 @@
 
 mod problem;
 
-use nalgebra::{Isometry3, Point3, Vector2};
+use nalgebra::{Isometry3, Point3, Vector2, Vector3};
 use rayon::prelude::*;
 use vofront_robust::{
     levenberg_marquardt, mad_sigma_about_zero, Convergence, Damping, LmConfig, LmError, Loss,
@@ -92,6 +101,20 @@ pub struct Observation {
     /// Relative noise scale of `pixel` (finite, positive; 1 for a keypoint of the finest
     /// pyramid level): its residual is divided by it.
     pub sigma: f64,
+    /// Column at which the right camera of a rectified stereo rig saw the point, pixels
+    /// (`None` for a monocular observation); needs [`BundleProblem::baseline`].
+    pub right: Option<f64>,
+}
+
+impl Observation {
+    /// Residual coordinates: 2 for a monocular observation, 3 for a stereo one.
+    pub fn dims(&self) -> usize {
+        if self.right.is_some() {
+            3
+        } else {
+            2
+        }
+    }
 }
 
 /// A window of keyframes and the points they observe; [`bundle_adjust`] refines `poses` and
@@ -106,6 +129,9 @@ pub struct BundleProblem {
     pub points: Vec<Point3<f64>>,
     /// The observations.
     pub observations: Vec<Observation>,
+    /// Baseline of the rectified stereo rig, metres: the right camera sits at `x = +b` in the
+    /// left camera's frame, with the same camera model (`None`: no stereo observations).
+    pub baseline: Option<f64>,
 }
 
 /// Settings of [`bundle_adjust`].
@@ -125,8 +151,11 @@ pub struct BundleConfig {
     /// A solve stops when the whole step (metres and radians) is shorter than this.
     pub min_step: f64,
     /// Observations with `|r|^2 > gate_chi2 (1 - h) sigma^2` (`h` the observation's
-    /// leverage, see the module documentation) are culled after convergence.
+    /// leverage, see the module documentation) are culled after convergence (monocular
+    /// observations: two coordinates).
     pub gate_chi2: f64,
+    /// The same gate for stereo observations (three coordinates).
+    pub gate_chi2_stereo: f64,
     /// Floor of the estimated residual scale, pixels.
     pub min_sigma_px: f64,
     /// At most this many (solve, cull) rounds.
@@ -135,8 +164,9 @@ pub struct BundleConfig {
 
 impl Default for BundleConfig {
     /// Huber at 1.345 of a 1-pixel scale, two fixed keyframes, 50 iterations, relative
-    /// decrease 1e-8, step 1e-10, chi-square gate 5.99 at an estimated sigma floored at
-    /// 0.05 pixel, three rounds.
+    /// decrease 1e-8, step 1e-10, chi-square gate 5.99 (7.81 for a stereo observation: the 95%
+    /// quantiles of two and three degrees of freedom) at an estimated sigma floored at 0.05
+    /// pixel, three rounds.
     fn default() -> Self {
         Self {
             loss: Loss::Huber(1.345),
@@ -146,6 +176,7 @@ impl Default for BundleConfig {
             min_relative_decrease: 1e-8,
             min_step: 1e-10,
             gate_chi2: 5.99,
+            gate_chi2_stereo: 7.815,
             min_sigma_px: 0.05,
             max_rounds: 3,
         }
@@ -185,12 +216,21 @@ fn validate(problem: &BundleProblem, cfg: &BundleConfig) -> Result<(), GeometryE
         ));
     }
     let positive = |v: f64| v.is_finite() && v > 0.0;
-    if !(positive(cfg.sigma_px) && positive(cfg.gate_chi2) && positive(cfg.min_sigma_px))
+    if !(positive(cfg.sigma_px)
+        && positive(cfg.gate_chi2)
+        && positive(cfg.gate_chi2_stereo)
+        && positive(cfg.min_sigma_px))
         || cfg.max_rounds == 0
         || cfg.max_iterations == 0
     {
         return Err(GeometryError::InvalidConfig(
-            "sigma_px, gate_chi2, min_sigma_px, max_rounds and max_iterations must be positive",
+            "sigma_px, the gates, min_sigma_px, max_rounds and max_iterations must be positive",
+        ));
+    }
+    let stereo = problem.observations.iter().any(|o| o.right.is_some());
+    if stereo && !problem.baseline.is_some_and(positive) {
+        return Err(GeometryError::InvalidConfig(
+            "stereo observations need a finite, positive baseline",
         ));
     }
     let (n_poses, n_points) = (problem.poses.len(), problem.points.len());
@@ -216,10 +256,11 @@ fn validate(problem: &BundleProblem, cfg: &BundleConfig) -> Result<(), GeometryE
         .points
         .iter()
         .all(|p| p.iter().all(|v| v.is_finite()));
-    let finite_pixels = problem
-        .observations
-        .iter()
-        .all(|o| o.pixel.iter().all(|v| v.is_finite()) && o.sigma.is_finite());
+    let finite_pixels = problem.observations.iter().all(|o| {
+        o.pixel.iter().all(|v| v.is_finite())
+            && o.sigma.is_finite()
+            && o.right.is_none_or(f64::is_finite)
+    });
     if finite_poses && finite_points && finite_pixels {
         Ok(())
     } else {
@@ -295,13 +336,21 @@ pub fn bundle_adjust(
             .iter()
             .zip(&shares)
             .filter_map(|(r, share)| r.map(|r| r / share.sqrt()))
-            .flat_map(|r| [r.x, r.y])
+            .zip(&problem.observations)
+            .flat_map(|(r, o)| r.iter().take(o.dims()).copied().collect::<Vec<_>>())
             .collect();
         let sigma = mad_sigma_about_zero(&coordinates)
             .unwrap_or(cfg.min_sigma_px)
             .max(cfg.min_sigma_px);
         report.sigma_px = sigma;
-        let limit = cfg.gate_chi2 * sigma * sigma;
+        let limit = |o: &Observation| {
+            let chi2 = if o.right.is_some() {
+                cfg.gate_chi2_stereo
+            } else {
+                cfg.gate_chi2
+            };
+            chi2 * sigma * sigma
+        };
         // Every observation is gated (those of points too weakly observed to be moved
         // included); only culls among the solved ones call for another solve.
         let was_active = {
@@ -311,6 +360,7 @@ pub fn bundle_adjust(
         };
         let mut new_culls = 0;
         for (o, r) in residuals.iter().enumerate() {
+            let limit = limit(&problem.observations[o]);
             if !culled[o] && !r.is_some_and(|r| r.norm_squared() <= limit * shares[o]) {
                 culled[o] = true;
                 new_culls += usize::from(was_active[o]);
@@ -330,42 +380,49 @@ const MIN_RESIDUAL_SHARE: f64 = 0.1;
 
 /// `1 - h_o` for every observation: the share of the per-coordinate noise variance left in
 /// its residual after a solve on `active` (one minus its leverage `h_o`). An active
-/// observation of a point with `m` active observations gives `3 / (2 m)` of its variance to
-/// the point's three coordinates, and `6 / (2 n)` to its keyframe's pose when that keyframe
-/// (not among the `fixed` oldest) has `n` active observations; an observation the solve did
-/// not use keeps all of it. A point seen twice thus keeps a quarter: its residuals are half
+/// observation of a point whose active observations have `m` residual coordinates in all
+/// gives `3 / m` of its variance to the point's three coordinates, and `6 / n` to its
+/// keyframe's pose when that keyframe (not among the `fixed` oldest) has `n` active residual
+/// coordinates; an observation the solve did not use keeps all of it. A point seen twice thus keeps a quarter: its residuals are half
 /// the noise, and a scale read from them unscaled would gate out good observations.
 fn residual_shares(problem: &BundleProblem, fixed: usize, active: &[usize]) -> Vec<f64> {
     let mut per_point = vec![0usize; problem.points.len()];
     let mut per_pose = vec![0usize; problem.poses.len()];
     for &o in active {
         let obs = &problem.observations[o];
-        per_point[obs.point] += 1;
-        per_pose[obs.pose] += 1;
+        per_point[obs.point] += obs.dims();
+        per_pose[obs.pose] += obs.dims();
     }
     let mut shares = vec![1.0; problem.observations.len()];
     for &o in active {
         let obs = &problem.observations[o];
-        let mut leverage = 1.5 / per_point[obs.point] as f64;
+        let mut leverage = 3.0 / per_point[obs.point] as f64;
         if obs.pose >= fixed {
-            leverage += 3.0 / per_pose[obs.pose] as f64;
+            leverage += 6.0 / per_pose[obs.pose] as f64;
         }
         shares[o] = (1.0 - leverage).max(MIN_RESIDUAL_SHARE);
     }
     shares
 }
 
-/// `pi(T_i P_j) - u_o` of every observation, `None` behind the camera.
-fn reprojection_errors(problem: &BundleProblem) -> Vec<Option<Vector2<f64>>> {
+/// `r_o` of every observation (third coordinate 0 for a monocular one), `None` behind the
+/// camera.
+fn reprojection_errors(problem: &BundleProblem) -> Vec<Option<Vector3<f64>>> {
+    let baseline = problem.baseline.unwrap_or(0.0);
     problem
         .observations
         .par_iter()
         .map(|o| {
-            let x = problem.poses[o.pose] * problem.points[o.point];
-            problem
-                .camera
-                .project(&x.coords)
-                .map(|u| (u - o.pixel) / o.sigma)
+            let x = (problem.poses[o.pose] * problem.points[o.point]).coords;
+            let u = problem.camera.project(&x)? - o.pixel;
+            let right = match o.right {
+                Some(ur) => {
+                    let xr = x - Vector3::new(baseline, 0.0, 0.0);
+                    problem.camera.project(&xr)?.x - ur
+                }
+                None => 0.0,
+            };
+            Some(Vector3::new(u.x, u.y, right) / o.sigma)
         })
         .collect()
 }
@@ -400,6 +457,7 @@ fn solve_round(
     }
     let mut reprojection = Reprojection {
         camera: &problem.camera,
+        baseline: problem.baseline.unwrap_or(0.0),
         observations: &problem.observations,
         active,
         by_point: &by_point,

@@ -80,6 +80,7 @@ pub fn forward_window(
                 point: j,
                 pixel,
                 sigma: 1.0,
+                right: None,
             });
             outlier.push(bad);
         }
@@ -90,6 +91,7 @@ pub fn forward_window(
             poses: poses.clone(),
             points: world.clone(),
             observations,
+            baseline: None,
         },
         poses,
         points: world,
