@@ -43,12 +43,13 @@ use super::coast::Coasting;
 use super::keyframe::KeyframeView;
 use super::local_map::{LocalMap, MapRules, MapSearch, WIDE_WINDOW_FACTOR};
 use super::lost::LostMap;
+use super::mono::KEYPOINT_QUANTISATION_PX;
 use super::{ms_since, FrameEstimate, FrameQuality, Located, PointLocator, TrackStatus, Tracker};
 use crate::dataset::Frame;
 use crate::error::VoError;
 pub use config::StereoTrackerConfig;
 pub use rectified::StereoFrameError;
-use rectified::{Rectified, StereoView};
+use rectified::{DepthRule, Rectified, StereoView};
 
 /// Why a stereo tracker could not be built.
 #[derive(Debug, Error)]
@@ -160,7 +161,11 @@ impl StereoTracker {
             Some(r) => r,
             None => Rectified::new(&self.rig, frame.image().size())?,
         };
-        let view = rectified.view(&self.orb, &self.cfg.stereo, frame.image(), right);
+        let depth = DepthRule {
+            disparity_sigma_px: KEYPOINT_QUANTISATION_PX,
+            max_relative_sigma: self.cfg.max_relative_depth_sigma,
+        };
+        let view = rectified.view(&self.orb, &self.cfg.stereo, depth, frame.image(), right);
         let camera = rectified.camera;
         self.rectified = Some(rectified);
         Ok((view?, camera))

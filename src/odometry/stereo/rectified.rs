@@ -6,7 +6,7 @@ use thiserror::Error;
 use vofront_core::rectify::{RectifyError, StereoRectification};
 use vofront_core::rig::Rig;
 use vofront_core::Camera;
-use vofront_features::{match_stereo, FeatureError, Features, Orb, StereoConfig};
+use vofront_features::{match_stereo, FeatureError, Features, Orb, StereoConfig, StereoMatch};
 use vofront_image::{Image, ImageError, Remap};
 
 /// Largest rotation (radians) and pinhole difference (pixels) under which a rig counts as
@@ -49,6 +49,17 @@ pub(crate) struct StereoView {
     pub right: Vec<Option<f64>>,
     /// `(width, height)` of the rectified images, pixels.
     pub size: (usize, usize),
+}
+
+/// Which stereo matches make points: those whose relative depth uncertainty
+/// `sigma_Z / Z = sigma_d / d` (`Z = f b / d`, `sigma_d` the disparity's noise) is at most
+/// `max_relative_sigma`.
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct DepthRule {
+    /// Disparity noise of a level-0 keypoint, pixels (times the keypoint's level scale).
+    pub disparity_sigma_px: f64,
+    /// Largest `sigma_d / d`.
+    pub max_relative_sigma: f64,
 }
 
 /// The rig's rectification, built once for the first frame's size.
@@ -109,11 +120,12 @@ impl Rectified {
 
     /// The frame's `left` and `right` images in the rectified geometry (bilinear, black where
     /// the source is outside), ORB features of both, the left ones matched along their rows
-    /// ([`match_stereo`]) and given their metric points.
+    /// ([`match_stereo`]) and given their metric points (those `depth` accepts).
     pub fn view(
         &self,
         orb: &Orb,
         stereo: &StereoConfig,
+        depth: DepthRule,
         left: &Image<u8>,
         right: &Image<u8>,
     ) -> Result<StereoView, StereoFrameError> {
@@ -142,7 +154,11 @@ impl Rectified {
         let mut points = vec![None; features.len()];
         let mut right = vec![None; features.len()];
         let k = &self.camera.pinhole;
-        for m in matches {
+        let sigma_of = |m: &StereoMatch| depth.disparity_sigma_px * f64::from(m.noise_scale);
+        for m in matches
+            .iter()
+            .filter(|m| sigma_of(m) <= depth.max_relative_sigma * f64::from(m.disparity))
+        {
             let (u, v) = (
                 f64::from(features.xs()[m.left as usize]),
                 f64::from(features.ys()[m.left as usize]),
