@@ -4,7 +4,8 @@
 //!    rectification; a rig rectified already, such as KITTI's, is used as it is). Each frame:
 //!    both images in the rectified geometry, ORB on each, the left features matched along
 //!    their rows in the right image, and every matched left feature's metric point
-//!    `P = Z K^-1 [u, v, 1]`, `Z = f b / d`, in the rectified left camera.
+//!    `P = Z K^-1 [u, v, 1]`, `Z = f b / d`, in the rectified left camera, when its relative
+//!    depth uncertainty `sigma_d / d` is at most `max_relative_depth_sigma`.
 //! 2. The first frame is a keyframe at the origin whose stereo points start the map at once:
 //!    no initialisation, the scale is the baseline's. A keyframe makes every stereo point of a
 //!    feature that has no map point yet a map point. (ORB-SLAM2's rule, every point nearer
@@ -19,7 +20,9 @@
 //!    tracked after the newest keyframe) falls under the policy's `min_overlap`, or on its
 //!    rotation and residual tests; it
 //!    observes the points it tracked, adds its own stereo points, refines the structure and
-//!    culls points (the map's `maintain`). No bundle adjustment in this version.
+//!    culls points (the map's `maintain`) and, when
+//!    `local_ba` is set (off by default), adjusts the window with stereo observations
+//!    (`LocalMap::adjust_window`).
 //! 5. When PnP fails the frame is lost and the map kept (`odometry::lost`); the motion model
 //!    coasts (`odometry::coast`). The next frame is first relocated in the lost map from the
 //!    coasted prediction (wide window, `min_keyframe_inliers` inliers), else it starts a new
