@@ -44,7 +44,7 @@ pub struct OrbConfig {
     /// none) keeps its best-scored one before the selection above fills the rest of the level's
     /// budget, so weak-texture regions (road, sky edges) keep features. `0` (the default) turns
     /// it off: on the shared KITTI and TUM frames every floor measured so far costs verified
-    /// matches (README, "ORB").
+    /// matches (README, "Measuring against the peers").
     pub cell_floor: usize,
 }
 
