@@ -489,6 +489,7 @@ proptest! {
         edge in 0usize..80,
         patch in 0usize..80,
         n in 0usize..3000,
+        floor in 0usize..200,
     ) {
         let cfg = OrbConfig {
             n_features: n,
@@ -498,6 +499,7 @@ proptest! {
             min_fast_threshold: fast / 2,
             edge_threshold: edge,
             patch_size: patch,
+            cell_floor: floor,
             ..OrbConfig::default()
         };
         let data = (0..160 * 120).map(|i| ((i % 160 * 7 + i / 160 * 13) % 256) as u8).collect();

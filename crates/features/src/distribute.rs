@@ -4,6 +4,11 @@
 //! into four quadrants (empty quadrants dropped, largest nodes first) until there are at least
 //! `n` nodes or no node can be split. Each node then keeps its best-response point; if there are more than
 //! `n` nodes, the `n` best of those survive. Dense clusters thus cannot eat the whole budget.
+//!
+//! Optionally a per-cell floor goes first ([`floor_corners`], [`select`]): the best FAST corner
+//! of every tile keeps its place, and the selection above fills the rest of the budget.
+
+use crate::fast::Corner;
 
 /// A quadtree node: a rectangle in level pixels and a range of the shared index buffer.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -186,6 +191,76 @@ fn partition(v: &mut [usize], pred: impl Fn(usize) -> bool) -> usize {
         }
     }
     k
+}
+
+/// The best-scored FAST corner of every `cell x cell` tile of the level (none for `cell == 0`
+/// or a zero budget), in raster order of the corners.
+pub(crate) fn floor_corners(corners: &[Corner], cell: usize, n: usize) -> Vec<Corner> {
+    if cell == 0 || n == 0 {
+        return Vec::new();
+    }
+    let mut best: std::collections::BTreeMap<(u32, u32), Corner> = Default::default();
+    for c in corners {
+        let key = (c.y / cell as u32, c.x / cell as u32);
+        let e = best.entry(key).or_insert(*c);
+        if c.score > e.score {
+            *e = *c;
+        }
+    }
+    let mut out: Vec<Corner> = best.into_values().collect();
+    out.sort_unstable_by_key(|c| (c.y, c.x));
+    out
+}
+
+/// Indices into `cand` of the level's `n` features: the `floor` corners first (their best `n`
+/// by Harris response when there are more), then the quadtree selection of the others
+/// ([`distribute`]) for the rest of the budget. `corners` are the candidates' corners, in
+/// the same (raster) order. Sorted ascending.
+pub(crate) fn select(
+    cand: &Candidates,
+    corners: &[Corner],
+    floor: &[Corner],
+    region: (f32, f32, f32, f32),
+    n: usize,
+    spread: f32,
+) -> Vec<usize> {
+    if floor.is_empty() {
+        return distribute(&cand.xs, &cand.ys, &cand.responses, region, n, spread);
+    }
+    let is_floor = |c: &Corner| {
+        floor
+            .binary_search_by_key(&(c.y, c.x), |f| (f.y, f.x))
+            .is_ok()
+    };
+    let (mut reserved, rest): (Vec<usize>, Vec<usize>) =
+        (0..corners.len()).partition(|&i| is_floor(&corners[i]));
+    if reserved.len() > n {
+        reserved.sort_by(|&a, &b| {
+            cand.responses[b]
+                .total_cmp(&cand.responses[a])
+                .then(a.cmp(&b))
+        });
+        reserved.truncate(n);
+    }
+    let pick = |v: &[f32]| rest.iter().map(|&i| v[i]).collect::<Vec<f32>>();
+    let more = distribute(
+        &pick(&cand.xs),
+        &pick(&cand.ys),
+        &pick(&cand.responses),
+        region,
+        n - reserved.len(),
+        spread,
+    );
+    reserved.extend(more.into_iter().map(|j| rest[j]));
+    reserved.sort_unstable();
+    reserved
+}
+
+/// Corners of one level in level pixels with their Harris responses.
+pub(crate) struct Candidates {
+    pub xs: Vec<f32>,
+    pub ys: Vec<f32>,
+    pub responses: Vec<f32>,
 }
 
 #[cfg(test)]
