@@ -1,5 +1,6 @@
 //! Sequence trackers on rendered TUM sequences with exact ground truth.
 
+use std::io;
 use std::path::PathBuf;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::OnceLock;
@@ -13,7 +14,10 @@ use vofront::fixtures::tum::write_tum_sequence;
 use vofront::odometry::direct::{DirectTracker, DirectTrackerConfig};
 use vofront::odometry::feature_rgbd::{FeatureRgbdConfig, FeatureRgbdTracker};
 use vofront::odometry::mono::{MonoConfig, MonoTracker};
-use vofront::odometry::run::{run, run_with, FrameRecord, RunControl, RunSummary};
+use vofront::odometry::observe::Observed;
+use vofront::odometry::run::{
+    run, run_observed, run_with, FrameRecord, RunControl, RunError, RunSummary,
+};
 use vofront::odometry::{FrameEstimate, FrameQuality, TrackStatus, Tracker};
 use vofront::trajectory::Trajectory;
 
@@ -326,5 +330,91 @@ fn pending_frames_are_sent_as_they_are_when_the_run_ends_or_stops() {
         assert_eq!(out.summary.lost, 2);
         assert_eq!(out.summary.interrupted, stop_after == 2);
         assert_eq!(out.trajectory.len(), 1);
+    }
+}
+
+/// `run_observed` shows the observer every frame read, in order, with its estimate; the
+/// tracker keeps details only while observed; an observer's error stops the run at that frame
+/// with `RunError::Observer`, every earlier record already sent.
+#[test]
+fn an_observer_sees_each_frame_and_its_error_stops_the_run() {
+    let dataset = shared_sequence();
+    let mut tracker = direct_tracker(640);
+    let mut seen = Vec::new();
+    let mut sent = 0;
+    let mut sink = |_: &FrameRecord| {
+        sent += 1;
+        Ok(())
+    };
+    let mut observer = |o: &Observed<'_>| {
+        seen.push((o.index, o.estimate.status, o.frame.image().size()));
+        if o.index == 5 {
+            Err(io::Error::other("viewer gone"))
+        } else {
+            Ok(())
+        }
+    };
+    let err = run_observed(
+        dataset,
+        &mut tracker,
+        &RunControl::default(),
+        &mut sink,
+        &mut observer,
+    )
+    .expect_err("the observer's error stops the run");
+    assert!(
+        matches!(err, RunError::Observer { index: 5, .. }),
+        "{err:?}"
+    );
+    assert!(err.to_string().contains("viewer gone"), "{err}");
+    assert_eq!(
+        seen.iter().map(|s| s.0).collect::<Vec<_>>(),
+        (0..=5).collect::<Vec<_>>()
+    );
+    assert!(seen
+        .iter()
+        .all(|s| s.1 == TrackStatus::Ok && s.2 == (640, 480)));
+    assert_eq!(sent, 5, "frames 0-4 reached the sink");
+    assert!(tracker.details().is_none(), "details dropped after the run");
+}
+
+/// The monocular and feature RGB-D trackers keep no details until asked; asked, each frame's
+/// keypoints come with their roles: in a frame located by PnP its inliers, nearly as many as
+/// the estimate counts, and the map's points.
+#[test]
+fn feature_trackers_show_keypoints_and_map_points_only_when_asked() {
+    let dataset = shared_sequence();
+    let camera = scaled_camera(640);
+    let trackers: [Box<dyn Tracker>; 2] = [
+        Box::new(MonoTracker::new(camera, MonoConfig::default()).expect("mono")),
+        Box::new(FeatureRgbdTracker::new(camera, FeatureRgbdConfig::default()).expect("rgbd")),
+    ];
+    for mut tracker in trackers {
+        let frame = dataset.load(0).expect("frame 0");
+        tracker.track(&frame);
+        assert!(tracker.details().is_none());
+        tracker.keep_details(true);
+        let mut located = 0;
+        for i in 1..FRAMES {
+            let estimate = tracker.track(&dataset.load(i).expect("frame"));
+            let details = tracker.details().expect("details kept");
+            assert_eq!(details.keypoints.len(), details.roles.len());
+            assert!(!details.keypoints.is_empty(), "frame {i}");
+            let (inliers, outliers, _) = details.role_counts();
+            // Located by PnP (an initialising frame shows its keypoints unmatched).
+            if inliers > 0 {
+                located += 1;
+                // Two map points may match one keypoint: its inliers are at most the
+                // estimate's, and most of them.
+                let counted = estimate.quality.inliers;
+                assert!(
+                    inliers <= counted && 5 * inliers >= 4 * counted,
+                    "frame {i}"
+                );
+                assert!(outliers < inliers, "frame {i}");
+                assert!(details.map_points.len() >= inliers, "frame {i}");
+            }
+        }
+        assert!(located >= FRAMES - 2 - MONO_MAX_INIT_FRAMES, "{located}");
     }
 }

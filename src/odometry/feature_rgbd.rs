@@ -18,6 +18,7 @@ use vofront_features::{Features, MatchConfig, Orb, OrbConfig};
 use vofront_geometry::pnp::PnpConfig;
 
 use super::keyframe::{KeyframePolicy, KeyframeView};
+use super::observe::FrameDetails;
 use super::{
     feature_pixel, ms_since, FrameEstimate, FrameQuality, KeyframeSlot, Located, PointLocator,
     TrackStatus, Tracker,
@@ -109,6 +110,8 @@ pub struct FeatureRgbdTracker {
     orb: Orb,
     camera: Camera,
     slot: KeyframeSlot<Keyframe>,
+    /// The last frame's details, kept while an observer asks ([`Tracker::keep_details`]).
+    details: Option<FrameDetails>,
 }
 
 impl FeatureRgbdTracker {
@@ -123,6 +126,7 @@ impl FeatureRgbdTracker {
             orb,
             camera,
             slot: KeyframeSlot::default(),
+            details: None,
         })
     }
 
@@ -170,6 +174,30 @@ impl FeatureRgbdTracker {
 
 impl Tracker for FeatureRgbdTracker {
     fn track(&mut self, frame: &Frame) -> FrameEstimate {
+        if let Some(details) = &mut self.details {
+            details.clear();
+        }
+        let estimate = self.track_frame(frame);
+        if let (Some(details), Some(kf)) = (&mut self.details, &self.slot.keyframe) {
+            details
+                .map_points
+                .extend(kf.points.iter().flatten().map(|p| kf.t_wc * p));
+        }
+        estimate
+    }
+
+    fn keep_details(&mut self, keep: bool) {
+        self.details = keep.then(FrameDetails::default);
+    }
+
+    fn details(&self) -> Option<&FrameDetails> {
+        self.details.as_ref()
+    }
+}
+
+impl FeatureRgbdTracker {
+    /// One frame against the keyframe (a new keyframe when there is none or tracking failed).
+    fn track_frame(&mut self, frame: &Frame) -> FrameEstimate {
         let start = Instant::now();
         let predicted = self.slot.predict();
         let features = match self.orb.detect_and_describe(frame.image()) {
@@ -183,6 +211,9 @@ impl Tracker for FeatureRgbdTracker {
                 )
             }
         };
+        if let Some(details) = &mut self.details {
+            details.detected(&features);
+        }
         let Some(kf) = self.slot.keyframe.as_mut() else {
             let made = self.make_keyframe(frame, features, predicted);
             return self
@@ -210,6 +241,9 @@ impl Tracker for FeatureRgbdTracker {
                 return self.slot.restart(made, predicted, why.to_string(), start);
             }
         };
+        if let Some(details) = &mut self.details {
+            details.mark(&matches, &fit.inliers);
+        }
         let t_wc = kf.t_wc * fit.pose.inverse();
         let first_residual = *kf.first_residual.get_or_insert(fit.rmse_px);
         let view = KeyframeView {

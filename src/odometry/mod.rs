@@ -34,6 +34,7 @@ mod local_map;
 mod lost;
 pub mod mono;
 pub mod motion;
+pub mod observe;
 pub mod registry;
 pub mod run;
 pub mod sink;
@@ -49,6 +50,7 @@ use vofront_robust::{Quality, Verdict};
 
 use crate::dataset::Frame;
 use motion::ConstantVelocity;
+use observe::FrameDetails;
 
 /// How tracking of one frame went; the JSON spelling is [`TrackStatus::as_str`].
 #[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize)]
@@ -174,6 +176,17 @@ pub trait Tracker {
     /// False by default.
     fn needs_right(&self) -> bool {
         false
+    }
+
+    /// Starts (`true`) or stops keeping the [`FrameDetails`] of each frame tracked, for
+    /// [`details`](Tracker::details). Off until asked, so that a run without an observer does
+    /// no extra work; a tracker with nothing to show ignores it (the default).
+    fn keep_details(&mut self, _keep: bool) {}
+
+    /// The details of the last frame tracked, while kept ([`keep_details`](Tracker::keep_details));
+    /// `None` by default.
+    fn details(&self) -> Option<&FrameDetails> {
+        None
     }
 }
 

@@ -39,7 +39,8 @@ use vofront_features::FeatureError;
 use super::direct::{DirectTracker, DirectTrackerConfig};
 use super::feature_rgbd::{FeatureRgbdConfig, FeatureRgbdTracker};
 use super::mono::{MonoConfig, MonoTracker};
-use super::run::{run_with, FrameSink, RunControl, RunError, RunOutput};
+use super::observe::FrameObserver;
+use super::run::{run_observed, run_with, FrameSink, RunControl, RunError, RunOutput};
 use super::stereo::{StereoTracker, StereoTrackerConfig, StereoTrackerError};
 use super::Tracker;
 use crate::dataset::{CameraSource, Dataset};
@@ -388,6 +389,24 @@ impl Session {
         sink: &mut dyn FrameSink,
     ) -> Result<RunOutput, OdometryError> {
         Ok(run_with(&self.dataset, tracker, control, sink)?)
+    }
+
+    /// [`Session::run`] with an `observer` that sees every frame as it is tracked
+    /// ([`run_observed`]).
+    pub fn run_observed(
+        &self,
+        tracker: &mut dyn Tracker,
+        control: &RunControl<'_>,
+        sink: &mut dyn FrameSink,
+        observer: &mut dyn FrameObserver,
+    ) -> Result<RunOutput, OdometryError> {
+        Ok(run_observed(
+            &self.dataset,
+            tracker,
+            control,
+            sink,
+            observer,
+        )?)
     }
 
     /// ATE and RPE of `trajectory` against the camera ground truth, associated within the

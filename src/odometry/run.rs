@@ -18,6 +18,7 @@ use std::sync::Arc;
 use serde::Serialize;
 use thiserror::Error;
 
+use super::observe::{FrameObserver, Observed};
 pub use super::sink::{FrameSink, MetricsCsvSink, MetricsRow, TumSink, METRICS_COLUMNS};
 use super::{FrameEstimate, TrackStatus, Tracker};
 use crate::dataset::{Dataset, DatasetError};
@@ -156,6 +157,15 @@ pub enum RunError {
         /// The sink's error.
         source: io::Error,
     },
+    /// The observer of [`run_observed`] could not take frame `index` (e.g. the viewer's file
+    /// could not be written); every earlier frame was taken.
+    #[error("frame {index}: cannot log the frame: {source}")]
+    Observer {
+        /// The frame the observer refused.
+        index: usize,
+        /// The observer's error.
+        source: io::Error,
+    },
 }
 
 /// Tracks the frames of `dataset` allowed by `control`, handing each record to `sink`, in
@@ -202,21 +212,65 @@ pub fn run_with(
     control: &RunControl<'_>,
     sink: &mut dyn FrameSink,
 ) -> Result<RunOutput, RunError> {
-    drive(dataset, tracker, control, |r| sink.frame(r))
-        .map_err(|(index, source)| RunError::Sink { index, source })
+    drive(
+        dataset,
+        tracker,
+        control,
+        |_| Ok(()),
+        |r| {
+            sink.frame(r).map_err(|source| RunError::Sink {
+                index: r.index,
+                source,
+            })
+        },
+    )
 }
 
-/// The loop of [`run_with`] for any sink error type `E`; `Err((frame index, error))`.
+/// [`run_with`] with an `observer` that sees every frame right after it was tracked: the
+/// frame, the tracker's estimate and its [`FrameDetails`](super::observe::FrameDetails)
+/// (the tracker is asked to keep them, [`Tracker::keep_details`], for this run only).
+pub fn run_observed(
+    dataset: &Dataset,
+    tracker: &mut dyn Tracker,
+    control: &RunControl<'_>,
+    sink: &mut dyn FrameSink,
+    observer: &mut dyn FrameObserver,
+) -> Result<RunOutput, RunError> {
+    tracker.keep_details(true);
+    let out = drive(
+        dataset,
+        tracker,
+        control,
+        |o| {
+            observer.frame(o).map_err(|source| RunError::Observer {
+                index: o.index,
+                source,
+            })
+        },
+        |r| {
+            sink.frame(r).map_err(|source| RunError::Sink {
+                index: r.index,
+                source,
+            })
+        },
+    );
+    tracker.keep_details(false);
+    out
+}
+
+/// The loop of [`run_with`] for any error type `E` of the observer and the sink.
 ///
 /// Records wait in `held` while the tracker may still revise them ([`Tracker::pending`]),
 /// take its revisions there, and go to the summary, the trajectory and the sink in frame
-/// order; a stop or the end of the dataset sends the held ones as they are.
+/// order; a stop or the end of the dataset sends the held ones as they are. `observe` sees
+/// each frame read as soon as it was tracked.
 fn drive<E>(
     dataset: &Dataset,
     tracker: &mut dyn Tracker,
     control: &RunControl<'_>,
+    mut observe: impl FnMut(&Observed<'_>) -> Result<(), E>,
     mut sink: impl FnMut(&FrameRecord) -> Result<(), E>,
-) -> Result<RunOutput, (usize, E)> {
+) -> Result<RunOutput, E> {
     let total = control
         .max_frames
         .map_or(dataset.len(), |m| m.min(dataset.len()));
@@ -227,7 +281,7 @@ fn drive<E>(
         if let Some(pose) = record.trajectory_pose() {
             out.trajectory.push(record.timestamp, pose);
         }
-        sink(&record).map_err(|e| (record.index, e))?;
+        sink(&record)?;
         out.records.push(record);
         Ok(())
     };
@@ -241,7 +295,19 @@ fn drive<E>(
         } else {
             dataset.load(index)
         };
-        let estimate = loaded.map_err(Arc::new).map(|frame| tracker.track(&frame));
+        let estimate = match loaded {
+            Ok(frame) => {
+                let estimate = tracker.track(&frame);
+                observe(&Observed {
+                    index,
+                    frame: &frame,
+                    estimate: &estimate,
+                    details: tracker.details(),
+                })?;
+                Ok(estimate)
+            }
+            Err(why) => Err(Arc::new(why)),
+        };
         let tracked = estimate.is_ok();
         held.push_back(FrameRecord {
             index,
@@ -324,12 +390,18 @@ pub fn run(
         max_frames,
         stop: None,
     };
-    let done = drive(dataset, tracker, &control, |r| {
-        progress(r.index + 1, total);
-        Ok::<(), Infallible>(())
-    });
+    let done = drive(
+        dataset,
+        tracker,
+        &control,
+        |_| Ok(()),
+        |r| {
+            progress(r.index + 1, total);
+            Ok::<(), Infallible>(())
+        },
+    );
     match done {
         Ok(out) => out,
-        Err((_, never)) => match never {},
+        Err(never) => match never {},
     }
 }

@@ -130,6 +130,11 @@ const POINT_LM: LmConfig = LmConfig {
 const POINT_MIN_DEPTH: f64 = 1e-6;
 
 impl LocalMap {
+    /// The position of every point, world frame (map units).
+    pub fn world_points(&self) -> impl Iterator<Item = Point3<f64>> + '_ {
+        self.points.values().map(|p| p.position)
+    }
+
     /// The newest keyframe.
     pub fn last(&self) -> Option<&MapKeyframe> {
         self.keyframes.back()

@@ -59,6 +59,7 @@ use super::keyframe::KeyframeView;
 use super::late::{LateEstimates, Waiting};
 use super::local_map::{LocalMap, MapRules, WIDE_WINDOW_FACTOR};
 use super::lost::LostMap;
+use super::observe::FrameDetails;
 use super::{ms_since, FrameEstimate, FrameQuality, Located, PointLocator, TrackStatus, Tracker};
 use crate::dataset::Frame;
 pub use config::{MonoConfig, KEYPOINT_QUANTISATION_PX};
@@ -135,6 +136,8 @@ pub struct MonoTracker {
     /// The frame count, and the late estimates of waited frames made by the last `track`
     /// call ([`Tracker::revised`]).
     late: LateEstimates,
+    /// The last frame's details, kept while an observer asks ([`Tracker::keep_details`]).
+    details: Option<FrameDetails>,
 }
 
 impl MonoTracker {
@@ -150,6 +153,7 @@ impl MonoTracker {
             initialised_once: false,
             lost: LostMap::default(),
             late: LateEstimates::default(),
+            details: None,
         })
     }
 
@@ -213,6 +217,9 @@ impl MonoTracker {
                 return FrameEstimate::lost(predicted, why.to_string(), start);
             }
         };
+        if let Some(details) = &mut self.details {
+            details.mark(&matches, &fit.inliers);
+        }
         let mut t_wc = fit.pose.inverse();
         let tracked = map.keep_inliers(&matches, &world, &fit.inliers, &ids);
         let Some(last) = map.last() else {
@@ -389,9 +396,15 @@ impl MonoTracker {
 impl Tracker for MonoTracker {
     fn track(&mut self, frame: &Frame) -> FrameEstimate {
         self.late.begin_frame();
+        if let Some(details) = &mut self.details {
+            details.clear();
+        }
         let predicted = self.coast.predict();
         let estimate = self.track_from(frame, predicted);
         self.late.end_frame();
+        if let (Some(details), State::Tracking { map, .. }) = (&mut self.details, &self.state) {
+            details.map_points.extend(map.world_points());
+        }
         // A lost frame coasts on the motion model for a while (so that a new map is placed
         // where the camera has gone), then the model holds still.
         let lost = estimate.status == TrackStatus::Lost && self.initialised_once;
@@ -411,6 +424,14 @@ impl Tracker for MonoTracker {
     fn revised(&mut self) -> Vec<(usize, FrameEstimate)> {
         self.late.take()
     }
+
+    fn keep_details(&mut self, keep: bool) {
+        self.details = keep.then(FrameDetails::default);
+    }
+
+    fn details(&self) -> Option<&FrameDetails> {
+        self.details.as_ref()
+    }
 }
 
 impl MonoTracker {
@@ -421,6 +442,9 @@ impl MonoTracker {
             Ok(f) => f,
             Err(e) => return FrameEstimate::lost(predicted, e.to_string(), start),
         };
+        if let Some(details) = &mut self.details {
+            details.detected(&current);
+        }
         let tracking = matches!(self.state, State::Tracking { .. });
         if !tracking && current.len() < self.cfg.min_init_points {
             // A featureless frame can neither start nor serve an initialisation: skip it.
