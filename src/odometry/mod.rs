@@ -13,7 +13,9 @@
 //! - [`direct`]: RGB-D photometric SE(3) alignment to the keyframe;
 //! - [`feature_rgbd`]: ORB matched to the keyframe, 3D points from its depth, PnP RANSAC;
 //! - [`mono`]: monocular ORB: two-view initialisation, triangulated points, PnP tracking;
-//! - [`stereo`]: ORB on a rectified stereo pair, metric points at once, PnP tracking.
+//! - [`stereo`]: ORB on a rectified stereo pair, metric points at once, PnP tracking;
+//! - [`direct_stereo`]: photometric SE(3) alignment to keyframes with depth from the stereo
+//!   disparity (metric).
 //!
 //! What every sequential tracker may need besides its own alignment lives here too, crate-
 //! private: `coast` (the motion model keeps its velocity through up to ten lost frames, then
@@ -26,6 +28,7 @@
 
 mod coast;
 pub mod direct;
+pub mod direct_stereo;
 pub mod feature_rgbd;
 pub mod graph;
 pub mod keyframe;
