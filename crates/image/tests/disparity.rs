@@ -1,20 +1,15 @@
-//! Semi-dense disparity against rendered stereo pairs with exact depth (disparity `f b / Z`).
+//! Semi-dense disparity against the rendered stereo fixture
+//! (`vofront_fixtures::stereo`: exact disparities `f b / Z`).
 
-use nalgebra::{Isometry3, Translation3};
-use vofront_fixtures::driving::DrivingSequence;
-use vofront_fixtures::scene::{default_camera, room_trajectory, Scene};
-
+use vofront_fixtures::stereo::StereoSequence;
 use vofront_image::disparity::{match_pixels, select_pixels, DisparityConfig};
 use vofront_image::{Image, ImageError};
 
-/// Matches of the selected pixels of a rendered pair against the disparities `f b / Z` of
-/// the left depth map: (selected, matched, errors of the matched in pixels).
-fn against_truth(
-    left: &Image<f32>,
-    right: &Image<f32>,
-    depth: &Image<f32>,
-    fb: f32,
-) -> (usize, usize, Vec<f32>) {
+/// Matches of the selected pixels of frame 0 of `sequence` against its exact disparities:
+/// (selected, matched, errors of the matched in pixels).
+fn against_truth(sequence: &StereoSequence) -> (usize, usize, Vec<f32>) {
+    let view = sequence.render(0);
+    let (left, right) = (&view.left.image, &view.right.image);
     let cfg = DisparityConfig::default();
     let pixels = select_pixels(left, &cfg);
     let found = match_pixels(left, right, &pixels, &cfg).unwrap();
@@ -22,9 +17,8 @@ fn against_truth(
         .iter()
         .flatten()
         .map(|m| {
-            let z = depth.at(m.x as usize, m.y as usize);
             assert!(m.sigma > 0.0 && m.sigma.is_finite(), "{m:?}");
-            (m.disparity - fb / z).abs()
+            (m.disparity - view.disparity.at(m.x as usize, m.y as usize)).abs()
         })
         .collect();
     (pixels.len(), errors.len(), errors)
@@ -35,18 +29,10 @@ fn median(mut v: Vec<f32>) -> f32 {
     v[v.len() / 2]
 }
 
-#[test]
-fn rendered_street_disparities_are_recovered_to_a_tenth_of_a_pixel() {
-    let drive = DrivingSequence::new(5, 1);
-    let baseline = 0.5;
-    let right_in_left = Isometry3::from(Translation3::new(baseline, 0.0, 0.0));
-    let (w, h) = drive.size;
-    let left = drive.render(0);
-    let right = drive
-        .scene
-        .render(&drive.camera, w, h, &(drive.poses_wc[0] * right_in_left));
-    let fb = (drive.camera.pinhole.fx * baseline) as f32;
-    let (selected, matched, errors) = against_truth(&left.image, &right.image, &left.depth, fb);
+/// Half the selected pixels matched, fewer than 2% of them off by more than a pixel
+/// (occlusions and ambiguities are rejected), the median error under a tenth of a pixel.
+fn check(sequence: &StereoSequence) {
+    let (selected, matched, errors) = against_truth(sequence);
     assert!(selected > 1000, "{selected} pixels selected");
     assert!(matched * 2 > selected, "{matched} of {selected} matched");
     let gross = errors.iter().filter(|e| **e > 1.0).count();
@@ -59,24 +45,13 @@ fn rendered_street_disparities_are_recovered_to_a_tenth_of_a_pixel() {
 }
 
 #[test]
+fn rendered_street_disparities_are_recovered_to_a_tenth_of_a_pixel() {
+    check(&StereoSequence::driving(5, 1));
+}
+
+#[test]
 fn rendered_room_disparities_are_recovered_to_a_tenth_of_a_pixel() {
-    let camera = default_camera();
-    let baseline = 0.1;
-    let pose = room_trajectory(1)[0];
-    let right_in_left = Isometry3::from(Translation3::new(baseline, 0.0, 0.0));
-    let room = Scene::box_room(3);
-    let left = room.render(&camera, 640, 480, &pose);
-    let right = room.render(&camera, 640, 480, &(pose * right_in_left));
-    let fb = (camera.pinhole.fx * baseline) as f32;
-    let (selected, matched, errors) = against_truth(&left.image, &right.image, &left.depth, fb);
-    assert!(matched * 2 > selected, "{matched} of {selected} matched");
-    let gross = errors.iter().filter(|e| **e > 1.0).count();
-    assert!(
-        gross * 50 < matched,
-        "{gross} of {matched} off by more than 1 px"
-    );
-    let med = median(errors);
-    assert!(med < 0.1, "median error {med} px");
+    check(&StereoSequence::room(3, 1));
 }
 
 #[test]
