@@ -36,6 +36,11 @@ fn tracker_kind(method: &str) -> PyResult<TrackerKind> {
     method.parse().map_err(odometry_error)
 }
 
+/// `a` unless it is absent or Python's None.
+fn given<'a, 'py>(a: Option<&'a Bound<'py, PyAny>>) -> Option<&'a Bound<'py, PyAny>> {
+    a.filter(|a| !a.is_none())
+}
+
 /// A frame estimate as a dict: `timestamp`, `pose_wc` (4x4 camera-to-world), `status`
 /// (`ok`, `unreliable`, `lost`, `reinitialised`), `quality` {`inliers`, `inlier_ratio`, `rmse`,
 /// `iterations`, `covariance_trace`, `keyframe`, `ms`}, `message` (why it was lost, or None),
@@ -160,7 +165,6 @@ impl Odometry {
         right: Option<&Bound<'py, PyAny>>,
     ) -> PyResult<Bound<'py, PyDict>> {
         let img = gray8(image, "image")?;
-        let given = |a: Option<&Bound<'py, PyAny>>| a.filter(|a| !a.is_none());
         let (depth, right) = if self.method.needs_right() {
             let right = match (given(depth), given(right)) {
                 (Some(r), None) | (None, Some(r)) => gray8(r, "right")?,

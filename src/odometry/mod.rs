@@ -4,7 +4,8 @@
 //! constant-velocity prediction ([`motion`]), decides when to take a new keyframe
 //! ([`keyframe`]), and reports the camera pose `T_wc` (camera-to-world, first frame at the
 //! origin) with a [`TrackStatus`], [`FrameQuality`] scores and the [`Quality`] record of the
-//! estimate behind the pose ([`FrameEstimate::pose_quality`]: SE(3) for [`direct`], PnP for
+//! estimate behind the pose ([`FrameEstimate::pose_quality`]: SE(3) for [`direct`] and
+//! [`direct_stereo`], PnP for
 //! [`feature_rgbd`] and [`stereo`], PnP or the initialising two-view pose for [`mono`]). The status agrees with
 //! the verdict: a `failed` estimate loses the frame, an `unreliable` one is
 //! [`TrackStatus::Unreliable`], never plain [`TrackStatus::Ok`]. [`run`] drives a tracker over a
