@@ -89,7 +89,7 @@ impl DisparityConfig {
                 "disparities must satisfy 1 <= min_disparity < max_disparity",
             ));
         }
-        if !(self.uniqueness > 0.0 && self.uniqueness <= 1.0) || !finite {
+        if !(self.uniqueness > 0.0 && self.uniqueness <= 1.0 && finite) {
             return Err(ImageError::InvalidConfig(
                 "uniqueness must be in (0, 1], thresholds finite and non-negative",
             ));
