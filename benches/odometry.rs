@@ -1,15 +1,25 @@
 //! Per-frame cost of the sequence trackers at 640x480: a 12-frame rendered room sequence
 //! (about 1 cm and 0.3 deg per frame), tracked from the first frame; the reported time is for
 //! the whole sequence, so divide by 12 for frames per second. Image decoding is excluded.
+//!
+//! The stereo trackers (`stereo`, `direct-stereo`): one tracked frame, the second of
+//! `kitti_06` (1241x376, read from `../shared/data` relative to the workspace root) when
+//! present, else of the rendered stereo drive (620x188, 1 m per frame); the tracker is built
+//! and given the first frame outside the timed call.
 
-use criterion::{criterion_group, criterion_main, Criterion};
-use vofront::dataset::Frame;
+use std::path::PathBuf;
+
+use criterion::{criterion_group, criterion_main, BatchSize, Criterion};
+use vofront::core::rig::Rig;
+use vofront::dataset::{Dataset, Frame};
 use vofront::odometry::direct::{DirectTracker, DirectTrackerConfig};
 use vofront::odometry::feature_rgbd::{FeatureRgbdConfig, FeatureRgbdTracker};
 use vofront::odometry::mono::{MonoConfig, MonoTracker};
+use vofront::odometry::registry::{TrackerKind, TrackerOptions};
 use vofront::odometry::Tracker;
 use vofront_fixtures::image2d::to_gray8;
 use vofront_fixtures::scene::{default_camera, room_trajectory, Scene};
+use vofront_fixtures::stereo::StereoSequence;
 
 const FRAMES: usize = 12;
 
@@ -63,5 +73,66 @@ fn trackers(c: &mut Criterion) {
     group.finish();
 }
 
-criterion_group!(benches, trackers);
+/// The first two stereo frames of `kitti_06` and its rig when readable, else of the rendered
+/// drive.
+fn stereo_frames() -> (&'static str, Rig, Vec<Frame>) {
+    let root = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../shared/data/kitti_06");
+    let kitti = Dataset::open(&root).ok().and_then(|d| {
+        let frames: Option<Vec<Frame>> = (0..2).map(|i| d.load_stereo(i).ok()).collect();
+        Some((d.rig?, frames?))
+    });
+    if let Some((rig, frames)) = kitti.filter(|(rig, _)| rig.is_stereo()) {
+        return ("kitti_06_1241x376", rig, frames);
+    }
+    eprintln!(
+        "kitti_06 not readable under {}: the rendered drive",
+        root.display()
+    );
+    let drive = StereoSequence::driving(3, 2);
+    let rig = Rig::stereo(
+        drive.camera,
+        Default::default(),
+        drive.camera,
+        drive.right_in_left(),
+    )
+    .expect("a stereo rig");
+    let frames = (0..2)
+        .map(|i| {
+            let view = drive.render(i);
+            Frame::new(
+                i as f64 / drive.frame_rate,
+                to_gray8(&view.left.image),
+                None,
+            )
+            .and_then(|f| f.with_right(to_gray8(&view.right.image)))
+            .expect("same-sized images")
+        })
+        .collect();
+    ("rendered_620x188", rig, frames)
+}
+
+fn stereo_trackers(c: &mut Criterion) {
+    let (name, rig, frames) = stereo_frames();
+    let mut group = c.benchmark_group(format!("stereo_one_frame_{name}"));
+    group.sample_size(10);
+    for kind in [TrackerKind::Stereo, TrackerKind::DirectStereo] {
+        let start = || {
+            let mut tracker = kind
+                .build_for_rig(&rig, &TrackerOptions::default())
+                .expect("default config");
+            tracker.track(&frames[0]);
+            tracker
+        };
+        group.bench_function(kind.name(), |b| {
+            b.iter_batched(
+                start,
+                |mut tracker| tracker.track(&frames[1]).status,
+                BatchSize::PerIteration,
+            )
+        });
+    }
+    group.finish();
+}
+
+criterion_group!(benches, trackers, stereo_trackers);
 criterion_main!(benches);

@@ -39,6 +39,10 @@ pub enum VoError {
         /// The tracker's minimum.
         min: f64,
     },
+    /// The stereo pair could not be prepared (no right image, a size other than the
+    /// rectification's, a failed remap): the stereo trackers' frame error, as text.
+    #[error("stereo frame: {0}")]
+    StereoFrame(String),
     /// The estimate exists but its quality verdict is `failed`.
     #[error("{what} failed: {reasons}")]
     Rejected {

@@ -3,34 +3,42 @@
 use std::path::PathBuf;
 use std::sync::Mutex;
 
+use nalgebra::Isometry3;
 use numpy::PyArray2;
 use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
 use pyo3::types::{PyDict, PyList};
+use vofront::core::rig::Rig;
 use vofront::dataset::{Dataset, Frame};
 use vofront::odometry::registry::{OdometryError, Session, TrackerKind, TrackerOptions};
 use vofront::odometry::run::{FrameRecord, RunControl};
 use vofront::odometry::{FrameEstimate, Tracker};
 use vofront::trajectory::Trajectory;
 
-use crate::convert::{array2, bad, camera, depth, gray8, json_to_py, pose_matrix};
+use crate::convert::{array2, bad, camera, depth, gray8, json_to_py, pose, pose_matrix};
 use crate::errors::{dataset_error, failed, release};
 use crate::eval::{stats_dict, tum_rows};
 
-/// A registry error: `ValueError` for a bad name or a dataset without the depth the method
-/// needs, `VofrontError` otherwise.
+/// A registry error: `ValueError` for a bad name, a dataset without the depth or the stereo
+/// rig the method needs, `VofrontError` otherwise.
 fn odometry_error(e: OdometryError) -> PyErr {
     match e {
-        OdometryError::UnknownTracker(_) | OdometryError::NoDepth { .. } => {
-            PyValueError::new_err(e.to_string())
-        }
+        OdometryError::UnknownTracker(_)
+        | OdometryError::NoDepth { .. }
+        | OdometryError::NoStereo { .. } => PyValueError::new_err(e.to_string()),
         _ => failed(e),
     }
 }
 
-/// The tracker `method` names (`direct`, `feature-rgbd`, `mono`, or an alias).
+/// The tracker `method` names (`direct`, `feature-rgbd`, `mono`, `stereo`, `direct-stereo`,
+/// or an alias).
 fn tracker_kind(method: &str) -> PyResult<TrackerKind> {
     method.parse().map_err(odometry_error)
+}
+
+/// `a` unless it is absent or Python's None.
+fn given<'a, 'py>(a: Option<&'a Bound<'py, PyAny>>) -> Option<&'a Bound<'py, PyAny>> {
+    a.filter(|a| !a.is_none())
 }
 
 /// A frame estimate as a dict: `timestamp`, `pose_wc` (4x4 camera-to-world), `status`
@@ -72,9 +80,14 @@ fn estimate_dict<'py>(
 /// Frame-by-frame visual odometry with one of the library's trackers.
 ///
 /// `method`: `direct` (RGB-D photometric SE(3) to the keyframe), `feature-rgbd` (ORB + depth
-/// + PnP RANSAC) or `mono` (monocular ORB, scale arbitrary; `feature` is its former name,
-/// still accepted), as `vofront odometry --method`. `K` 3x3 pixels, `dist` OpenCV
-/// `(k1, k2, p1, p2, k3)`; `depth_scale` divides uint16 depth maps into metres.
+/// + PnP RANSAC), `mono` (monocular ORB, scale arbitrary; `feature` is its former name,
+/// still accepted), `stereo` (ORB on a stereo pair, metric) or `direct-stereo` (photometric
+/// SE(3) with depth from the stereo disparity, metric), as `vofront odometry --method`. `K`
+/// 3x3 pixels, `dist` OpenCV `(k1, k2, p1, p2, k3)`; `depth_scale` divides uint16 depth maps
+/// into metres. The stereo methods need the rig: the right camera `K_right`, `dist_right`
+/// (the left camera's when None) and its pose in the left camera frame, `T_left_right` (4x4,
+/// metres) or, for a rectified pair, `baseline` (metres: the right camera `baseline` along
+/// the left camera's x axis).
 #[pyclass(module = "vofront")]
 pub struct Odometry {
     method: TrackerKind,
@@ -88,19 +101,46 @@ pub struct Odometry {
 #[pymethods]
 impl Odometry {
     #[new]
-    #[pyo3(signature = (method, K, dist = None, depth_scale = 5000.0))]
-    #[allow(non_snake_case)]
+    #[pyo3(signature = (
+        method, K, dist = None, depth_scale = 5000.0, baseline = None, K_right = None,
+        dist_right = None, T_left_right = None
+    ))]
+    #[allow(non_snake_case, clippy::too_many_arguments)]
     fn new(
         method: &str,
         K: &Bound<'_, PyAny>,
         dist: Option<&Bound<'_, PyAny>>,
         depth_scale: f64,
+        baseline: Option<f64>,
+        K_right: Option<&Bound<'_, PyAny>>,
+        dist_right: Option<&Bound<'_, PyAny>>,
+        T_left_right: Option<&Bound<'_, PyAny>>,
     ) -> PyResult<Self> {
         let method = tracker_kind(method)?;
         let camera = camera(K, dist)?;
-        let tracker = method
-            .build(camera, &TrackerOptions::default())
-            .map_err(odometry_error)?;
+        let options = TrackerOptions::default();
+        let tracker = if method.needs_right() {
+            let right = match K_right {
+                Some(k) => self::camera(k, dist_right)?,
+                None => camera,
+            };
+            let right_in_left = match (T_left_right, baseline) {
+                (Some(t), None) => pose(t, "T_left_right")?,
+                (None, Some(b)) if b.is_finite() && b != 0.0 => Isometry3::translation(b, 0.0, 0.0),
+                _ => {
+                    return Err(bad(format!(
+                        "the {method} method needs the rig: give either T_left_right (4x4) or a \
+                         non-zero baseline (metres)"
+                    )))
+                }
+            };
+            let rig = Rig::stereo(camera, Isometry3::identity(), right, right_in_left)
+                .map_err(|e| bad(e.to_string()))?;
+            method.build_for_rig(&rig, &options)
+        } else {
+            method.build(camera, &options)
+        }
+        .map_err(odometry_error)?;
         Ok(Self {
             method,
             tracker: Mutex::new(tracker),
@@ -109,19 +149,31 @@ impl Odometry {
         })
     }
 
-    /// Tracks the next frame: grey `image` (uint8 or float32), `depth` (uint16 raw units or
-    /// float metres; required by `direct` and `feature-rgbd`), `timestamp` in seconds (the
-    /// frame number when None). Returns the frame estimate dict (`pose_wc` is `T_wc`, the
-    /// first frame at the origin).
-    #[pyo3(signature = (image, depth = None, timestamp = None))]
+    /// Tracks the next frame: grey `image` (uint8 or float32; the left image of a stereo
+    /// pair), `depth` (uint16 raw units or float metres; required by `direct` and
+    /// `feature-rgbd`), `timestamp` in seconds (the frame number when None). For `stereo` and
+    /// `direct-stereo` the second argument is the grey right image: `track(left, right,
+    /// timestamp)` (or `right=`). Returns the frame estimate dict (`pose_wc` is `T_wc` of the
+    /// (left) camera, the first frame at the origin).
+    #[pyo3(signature = (image, depth = None, timestamp = None, right = None))]
     fn track<'py>(
         &mut self,
         py: Python<'py>,
         image: &Bound<'py, PyAny>,
         depth: Option<&Bound<'py, PyAny>>,
         timestamp: Option<f64>,
+        right: Option<&Bound<'py, PyAny>>,
     ) -> PyResult<Bound<'py, PyDict>> {
         let img = gray8(image, "image")?;
+        let (depth, right) = if self.method.needs_right() {
+            let right = match (given(depth), given(right)) {
+                (Some(r), None) | (None, Some(r)) => gray8(r, "right")?,
+                _ => return Err(bad("right: this method needs one right image per frame")),
+            };
+            (None, Some(right))
+        } else {
+            (depth, None)
+        };
         let depth = match depth.filter(|d| !d.is_none()) {
             Some(d) => Some(self::depth(d, self.depth_scale, "depth")?),
             None if self.method.needs_depth() => {
@@ -130,7 +182,10 @@ impl Odometry {
             None => None,
         };
         let timestamp = timestamp.unwrap_or(self.timestamps.len() as f64);
-        let frame = Frame::new(timestamp, img, depth).map_err(|e| bad(e.to_string()))?;
+        let mut frame = Frame::new(timestamp, img, depth).map_err(|e| bad(e.to_string()))?;
+        if let Some(right) = right {
+            frame = frame.with_right(right).map_err(|e| bad(e.to_string()))?;
+        }
         let tracker = &self.tracker;
         let estimate = release(py, || {
             let mut tracker = tracker
@@ -187,6 +242,8 @@ impl Odometry {
 /// ground truth `ground_truth` (M, 8) of the CAMERA (EuRoC body poses times `T_BS`, what the
 /// trajectory is compared with) and `ate` (statistics in metres, aligned as the CLI aligns:
 /// SE(3), Sim(3) for `mono`; None with an `ate_error` message when it cannot be computed).
+/// `stereo` and `direct-stereo` need a folder with a stereo rig (KITTI `image_1/`, EuRoC
+/// `cam1/`) and are built from its calibration.
 #[pyfunction]
 #[pyo3(signature = (dataset_path, method = "direct", K = None, dist = None, max_frames = None))]
 #[allow(non_snake_case)]

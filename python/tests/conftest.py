@@ -97,3 +97,13 @@ def euroc_sequence(tmp_path_factory) -> Path:
     root = tmp_path_factory.mktemp("euroc") / "room"
     cargo_run("-p", "vofront-python", "--example", "euroc_sequence", "--", str(root), "30")
     return root
+
+
+@pytest.fixture(scope="session")
+def stereo_sequence(tmp_path_factory) -> Path:
+    """A 30-frame rendered stereo drive (`vofront_fixtures::stereo`, 0.5 m baseline) written as
+    a KITTI folder: ``image_0/``, ``image_1/``, ``calib.txt``, ``times.txt``, exact
+    ``poses.txt`` and ``groundtruth_tum.txt``."""
+    root = tmp_path_factory.mktemp("stereo") / "drive"
+    cargo_run("-p", "vofront-fixtures", "--example", "render_stereo", "--", str(root), "30")
+    return root

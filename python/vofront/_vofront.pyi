@@ -136,8 +136,11 @@ def klt(
 
 @final
 class Odometry:
-    """Frame-by-frame visual odometry: ``direct``, ``feature-rgbd`` or ``mono`` (``feature``,
-    its former name, is still accepted), the trackers of ``vofront odometry --method``."""
+    """Frame-by-frame visual odometry: ``direct``, ``feature-rgbd``, ``mono`` (``feature``,
+    its former name, is still accepted), ``stereo`` or ``direct-stereo``, the trackers of
+    ``vofront odometry --method``. The stereo methods need the rig: ``T_left_right`` (4x4
+    pose of the right camera in the left camera frame, metres) or ``baseline`` (metres, a
+    rectified pair), and ``K_right``/``dist_right`` when the right camera differs."""
 
     def __new__(
         cls,
@@ -145,14 +148,20 @@ class Odometry:
         K: _ArrayLike,
         dist: Optional[_ArrayLike] = None,
         depth_scale: float = 5000.0,
+        baseline: Optional[float] = None,
+        K_right: Optional[_ArrayLike] = None,
+        dist_right: Optional[_ArrayLike] = None,
+        T_left_right: Optional[_ArrayLike] = None,
     ) -> "Odometry": ...
     def track(
         self,
         image: _Image,
-        depth: Optional[_Depth] = None,
+        depth: Optional[Union[_Depth, _Image]] = None,
         timestamp: Optional[float] = None,
+        right: Optional[_Image] = None,
     ) -> dict[str, Any]:
-        """Tracks the next frame; returns ``timestamp``, ``pose_wc`` (4x4 ``T_wc``), ``status``
+        """Tracks the next frame (for ``stereo`` and ``direct-stereo``: ``track(left, right,
+        timestamp)``, the second argument the right image); returns ``timestamp``, ``pose_wc`` (4x4 ``T_wc``), ``status``
         (``ok`` / ``unreliable`` / ``lost`` / ``reinitialised``), ``quality``, ``message`` and
         ``pose_quality`` (the estimate's quality record: ``verdict``, ``reasons``, sigmas; None
         without an estimate)."""

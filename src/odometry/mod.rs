@@ -4,7 +4,8 @@
 //! constant-velocity prediction ([`motion`]), decides when to take a new keyframe
 //! ([`keyframe`]), and reports the camera pose `T_wc` (camera-to-world, first frame at the
 //! origin) with a [`TrackStatus`], [`FrameQuality`] scores and the [`Quality`] record of the
-//! estimate behind the pose ([`FrameEstimate::pose_quality`]: SE(3) for [`direct`], PnP for
+//! estimate behind the pose ([`FrameEstimate::pose_quality`]: SE(3) for [`direct`] and
+//! [`direct_stereo`], PnP for
 //! [`feature_rgbd`] and [`stereo`], PnP or the initialising two-view pose for [`mono`]). The status agrees with
 //! the verdict: a `failed` estimate loses the frame, an `unreliable` one is
 //! [`TrackStatus::Unreliable`], never plain [`TrackStatus::Ok`]. [`run`] drives a tracker over a
@@ -13,7 +14,9 @@
 //! - [`direct`]: RGB-D photometric SE(3) alignment to the keyframe;
 //! - [`feature_rgbd`]: ORB matched to the keyframe, 3D points from its depth, PnP RANSAC;
 //! - [`mono`]: monocular ORB: two-view initialisation, triangulated points, PnP tracking;
-//! - [`stereo`]: ORB on a rectified stereo pair, metric points at once, PnP tracking.
+//! - [`stereo`]: ORB on a rectified stereo pair, metric points at once, PnP tracking;
+//! - [`direct_stereo`]: photometric SE(3) alignment to keyframes with depth from the stereo
+//!   disparity (metric).
 //!
 //! What every sequential tracker may need besides its own alignment lives here too, crate-
 //! private: `coast` (the motion model keeps its velocity through up to ten lost frames, then
@@ -26,6 +29,7 @@
 
 mod coast;
 pub mod direct;
+pub mod direct_stereo;
 pub mod feature_rgbd;
 pub mod graph;
 pub mod keyframe;

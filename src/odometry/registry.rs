@@ -37,6 +37,7 @@ use vofront_core::Camera;
 use vofront_features::FeatureError;
 
 use super::direct::{DirectTracker, DirectTrackerConfig};
+use super::direct_stereo::{DirectStereoConfig, DirectStereoError, DirectStereoTracker};
 use super::feature_rgbd::{FeatureRgbdConfig, FeatureRgbdTracker};
 use super::mono::{MonoConfig, MonoTracker};
 use super::observe::FrameObserver;
@@ -64,19 +65,28 @@ pub enum TrackerKind {
     /// against the local map; metric poses ([`super::stereo::StereoTracker`]). Needs a stereo
     /// rig ([`Dataset::rig`]).
     Stereo,
+    /// `direct-stereo`: photometric SE(3) alignment with affine brightness to keyframes whose
+    /// depth comes from the semi-dense stereo disparity; metric poses
+    /// ([`super::direct_stereo::DirectStereoTracker`]). Needs a stereo rig.
+    DirectStereo,
 }
 
 /// Options a front-end may set on any tracker; `None` keeps the tracker's default.
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
 pub struct TrackerOptions {
-    /// ORB feature budget per frame of the feature trackers (ignored by `direct`).
+    /// ORB feature budget per frame of the feature trackers (ignored by `direct` and `direct-stereo`).
     pub features: Option<usize>,
 }
 
 impl TrackerKind {
     /// Every tracker, in the order front-ends list them.
-    pub const ALL: &'static [TrackerKind] =
-        &[Self::Direct, Self::FeatureRgbd, Self::Mono, Self::Stereo];
+    pub const ALL: &'static [TrackerKind] = &[
+        Self::Direct,
+        Self::FeatureRgbd,
+        Self::Mono,
+        Self::Stereo,
+        Self::DirectStereo,
+    ];
 
     /// The name front-ends use (`--method NAME`, JSON `method`).
     pub fn name(self) -> &'static str {
@@ -85,6 +95,7 @@ impl TrackerKind {
             Self::FeatureRgbd => "feature-rgbd",
             Self::Mono => "mono",
             Self::Stereo => "stereo",
+            Self::DirectStereo => "direct-stereo",
         }
     }
 
@@ -96,6 +107,7 @@ impl TrackerKind {
             Self::FeatureRgbd => &["feature_rgbd"],
             Self::Mono => &["feature"],
             Self::Stereo => &[],
+            Self::DirectStereo => &["direct_stereo"],
         }
     }
 
@@ -114,6 +126,10 @@ impl TrackerKind {
                 "Stereo ORB: metric map points from the rectified pair, PnP against the local \
                  map; needs a stereo rig"
             }
+            Self::DirectStereo => {
+                "Stereo direct: photometric SE(3) alignment to keyframes with depth from the \
+                 stereo disparity; needs a stereo rig"
+            }
         }
     }
 
@@ -121,7 +137,7 @@ impl TrackerKind {
     pub fn needs_depth(self) -> bool {
         match self {
             Self::Direct | Self::FeatureRgbd => true,
-            Self::Mono | Self::Stereo => false,
+            Self::Mono | Self::Stereo | Self::DirectStereo => false,
         }
     }
 
@@ -129,14 +145,14 @@ impl TrackerKind {
     /// dataset's stereo rig ([`TrackerKind::build_for_rig`]) and frames are loaded with
     /// [`Dataset::load_stereo`].
     pub fn needs_right(self) -> bool {
-        matches!(self, Self::Stereo)
+        matches!(self, Self::Stereo | Self::DirectStereo)
     }
 
     /// The alignment its trajectory is evaluated with: Sim(3) when the scale is unobservable
     /// (monocular), SE(3) otherwise.
     pub fn alignment(self) -> Alignment {
         match self {
-            Self::Direct | Self::FeatureRgbd | Self::Stereo => Alignment::Se3,
+            Self::Direct | Self::FeatureRgbd | Self::Stereo | Self::DirectStereo => Alignment::Se3,
             Self::Mono => Alignment::Sim3,
         }
     }
@@ -161,7 +177,9 @@ impl TrackerKind {
                 cfg.orb.n_features = options.features.unwrap_or(cfg.orb.n_features);
                 Box::new(MonoTracker::new(camera, cfg)?)
             }
-            Self::Stereo => return Err(OdometryError::NeedsStereoRig { kind: self }),
+            Self::Stereo | Self::DirectStereo => {
+                return Err(OdometryError::NeedsStereoRig { kind: self })
+            }
         })
     }
 
@@ -178,6 +196,10 @@ impl TrackerKind {
         }
         if !rig.is_stereo() {
             return Err(OdometryError::NeedsStereoRig { kind: self });
+        }
+        if self == Self::DirectStereo {
+            let cfg = DirectStereoConfig::default();
+            return Ok(Box::new(DirectStereoTracker::new(*rig, cfg)?));
         }
         let mut cfg = StereoTrackerConfig::default();
         cfg.orb.n_features = options.features.unwrap_or(cfg.orb.n_features);
@@ -265,6 +287,9 @@ pub enum OdometryError {
     /// The stereo tracker could not be built.
     #[error(transparent)]
     Stereo(#[from] StereoTrackerError),
+    /// The direct stereo tracker could not be built.
+    #[error(transparent)]
+    DirectStereo(#[from] DirectStereoError),
     /// The run ended early: a sink refused a record.
     #[error(transparent)]
     Run(#[from] RunError),
@@ -443,6 +468,8 @@ mod tests {
             ("mono", TrackerKind::Mono),
             ("feature", TrackerKind::Mono),
             ("stereo", TrackerKind::Stereo),
+            ("direct-stereo", TrackerKind::DirectStereo),
+            ("direct_stereo", TrackerKind::DirectStereo),
         ] {
             assert_eq!(name.parse::<TrackerKind>().unwrap(), kind, "{name}");
         }
@@ -453,20 +480,26 @@ mod tests {
         let err = "sideways".parse::<TrackerKind>().unwrap_err().to_string();
         assert_eq!(
             err,
-            "unknown tracker method 'sideways' (known: direct, feature-rgbd, mono, stereo; \
-             aliases feature_rgbd, feature)"
+            "unknown tracker method 'sideways' (known: direct, feature-rgbd, mono, stereo, \
+             direct-stereo; aliases feature_rgbd, feature, direct_stereo)"
         );
     }
 
     #[test]
-    fn only_mono_is_similarity_aligned_and_only_stereo_needs_a_right_image() {
+    fn only_mono_is_similarity_aligned_and_only_the_stereo_kinds_need_a_right_image() {
         let needs: Vec<_> = TrackerKind::ALL
             .iter()
             .map(|k| (k.needs_depth(), k.needs_right()))
             .collect();
         assert_eq!(
             needs,
-            [(true, false), (true, false), (false, false), (false, true)]
+            [
+                (true, false),
+                (true, false),
+                (false, false),
+                (false, true),
+                (false, true)
+            ]
         );
         for kind in TrackerKind::ALL {
             let want = if *kind == TrackerKind::Mono {

@@ -2,6 +2,9 @@
 //! images of a rectified pair: `kitti_06` frame 0 (`image_0`, `image_1`, 1226x370, read from
 //! `../shared/data` relative to the workspace root) when present, else a rendered street pair.
 //! The ORB detection of both images is outside the timed loop.
+//!
+//! The semi-dense disparity of the direct path (`vofront_image::disparity`) on the same pair:
+//! selection and block matching with the left-right check, timed together.
 
 use std::path::PathBuf;
 
@@ -10,6 +13,7 @@ use nalgebra::Translation3;
 use vofront_features::{match_stereo, Orb, OrbConfig, StereoConfig};
 use vofront_fixtures::driving::DrivingSequence;
 use vofront_fixtures::image2d::to_gray8;
+use vofront_image::disparity::{match_pixels, select_pixels, DisparityConfig};
 use vofront_image::Image;
 
 /// The KITTI pair when readable, else a rendered one.
@@ -47,5 +51,23 @@ fn stereo(c: &mut Criterion) {
     });
 }
 
-criterion_group!(benches, stereo);
+fn semi_dense(c: &mut Criterion) {
+    let (name, left, right) = pair();
+    let (left, right) = (left.to_f32(), right.to_f32());
+    let cfg = DisparityConfig::default();
+    let pixels = select_pixels(&left, &cfg);
+    let n = match_pixels(&left, &right, &pixels, &cfg).map_or(0, |m| m.iter().flatten().count());
+    eprintln!(
+        "{name}: {n} disparities of {} selected pixels",
+        pixels.len()
+    );
+    c.bench_function(&format!("semi_dense_disparity_{name}"), |b| {
+        b.iter(|| {
+            let pixels = select_pixels(&left, &cfg);
+            match_pixels(&left, &right, &pixels, &cfg).map(|m| m.len())
+        })
+    });
+}
+
+criterion_group!(benches, stereo, semi_dense);
 criterion_main!(benches);

@@ -8,6 +8,7 @@
 //! - [`pyramid`]: factor-2 pyramids ([`Pyramid`]); [`scale_pyramid`]: ORB's scale-factor
 //!   pyramid (bilinear resampling of 8-bit images);
 //! - [`remap`]: precomputed resampling maps (undistortion built once per camera);
+//! - [`disparity`]: semi-dense block-matching disparity of a rectified stereo pair;
 //! - [`corners`]: Shi-Tomasi corners; [`klt`]: pyramidal Lucas-Kanade tracking on reusable
 //!   pyramids, optionally seeded with predicted positions.
 //!
@@ -24,6 +25,7 @@
 
 pub mod buffer;
 pub mod corners;
+pub mod disparity;
 pub mod error;
 pub mod filter;
 pub mod klt;

@@ -32,7 +32,7 @@
 //! camera's poses turned back by the rectifying rotation).
 
 mod config;
-mod rectified;
+pub(crate) mod rectified;
 
 use std::time::Instant;
 

@@ -73,8 +73,8 @@ pub(crate) struct Rectified {
     /// `T_raw_rect`: rectified left-camera points into the raw left camera (`R_left^-1`).
     pub t_raw_rect: Isometry3<f64>,
     /// The remaps of the left and right images; `None` for a rig rectified already.
-    remaps: Option<[Remap; 2]>,
-    size: (usize, usize),
+    pub(crate) remaps: Option<[Remap; 2]>,
+    pub(crate) size: (usize, usize),
 }
 
 /// ORB features of `image`.
