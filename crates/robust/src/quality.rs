@@ -44,7 +44,9 @@ pub enum Reason {
     /// The consensus is within what random correspondences reach at the same threshold:
     /// `log10 NFA > QualityConfig::max_log10_nfa` (failed).
     NotBetterThanChance,
-    /// The rays of the two views are nearly parallel: translation direction undetermined
+    /// The translation direction is undetermined at the stated uncertainty: its predicted
+    /// standard deviation exceeds [`QualityConfig::max_direction_sigma_deg`] (the rays of the
+    /// two views are too nearly parallel for the noise), or no translation is seen at all
     /// (unreliable).
     LowParallax,
     /// A rotation alone explains the data: the translation is reported as zero (unreliable).
@@ -127,6 +129,11 @@ pub struct QualityConfig {
     pub min_pixels: usize,
     /// Largest predicted rotation standard deviation of an `ok` estimate, degrees (2).
     pub max_rotation_sigma_deg: f64,
+    /// Largest predicted translation-direction standard deviation (`sqrt(trace)` of its 2x2
+    /// covariance) of an `ok` two-view estimate, degrees (5). At 5 degrees RMS (3.5 per axis)
+    /// a direction is 20 degrees off with probability `exp(-16)`, if its covariance is right:
+    /// above it the direction is flagged [`Reason::LowParallax`].
+    pub max_direction_sigma_deg: f64,
 }
 
 impl Default for QualityConfig {
@@ -137,6 +144,7 @@ impl Default for QualityConfig {
             max_log10_nfa: -4.0,
             min_pixels: 1000,
             max_rotation_sigma_deg: 2.0,
+            max_direction_sigma_deg: 5.0,
         }
     }
 }
@@ -249,7 +257,8 @@ impl Quality {
     /// The record of an estimate with this support and the estimator's own `flags`; adds the
     /// support checks of `cfg` ([`Reason::TooFewInliers`], [`Reason::LowInlierRatio`],
     /// [`Reason::NotBetterThanChance`], [`Reason::TooFewPixels`], [`Reason::NotConverged`],
-    /// [`Reason::LargeUncertainty`]) and sets the verdict.
+    /// [`Reason::LargeUncertainty`], [`Reason::LowParallax`] from the direction sigma) and
+    /// sets the verdict.
     pub fn judge(
         support: Support,
         sigma: f64,
@@ -285,6 +294,12 @@ impl Quality {
             .is_some_and(|s| s.is_nan() || s > cfg.max_rotation_sigma_deg)
         {
             reasons.push(Reason::LargeUncertainty);
+        }
+        if uncertainty
+            .translation_direction_sigma_deg
+            .is_some_and(|s| s.is_nan() || s > cfg.max_direction_sigma_deg)
+        {
+            reasons.push(Reason::LowParallax);
         }
         reasons.sort();
         reasons.dedup();
