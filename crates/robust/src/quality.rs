@@ -475,6 +475,32 @@ mod tests {
     }
 
     #[test]
+    fn an_undetermined_direction_is_low_parallax() {
+        let cfg = QualityConfig::default();
+        let good = Support {
+            log10_nfa: Some(-50.0),
+            ..Support::new(200, 300)
+        };
+        let with_sigma = |deg: f64| {
+            let u = Uncertainty {
+                translation_direction_sigma_deg: Some(deg),
+                ..Uncertainty::default()
+            };
+            Quality::judge(good, 1.0, 3, true, u, &[], &cfg)
+        };
+        assert_eq!(
+            with_sigma(0.5 * cfg.max_direction_sigma_deg).verdict,
+            Verdict::Ok
+        );
+        let q = with_sigma(2.0 * cfg.max_direction_sigma_deg);
+        assert_eq!(
+            (q.verdict, q.reasons),
+            (Verdict::Unreliable, vec![Reason::LowParallax])
+        );
+        assert_eq!(with_sigma(f64::NAN).reasons, vec![Reason::LowParallax]);
+    }
+
+    #[test]
     fn serialises_with_the_documented_names() {
         let q = Quality::judge(
             Support::new(3, 4),

@@ -19,8 +19,9 @@
 //!    a noise scale estimated from its own residuals, `3 sigma` gate, re-selection until the
 //!    gated set is stable); final inliers and points from the refined pose (here);
 //! 5. `low_parallax` flags a translation direction undetermined at its stated uncertainty
-//!    (its sigma above `quality.max_direction_sigma_deg`, or a median parallax under the
-//!    optional `min_parallax_deg`); when a rotation alone explains at least 90% of the model's inliers
+//!    (its sigma above `quality.max_direction_sigma_deg`, no translation seen above the noise
+//!    in the derotated disparities, or a median parallax under the optional
+//!    `min_parallax_deg`); when a rotation alone explains at least 90% of the model's inliers
 //!    the motion is a pure rotation (`rotation`, the rotation-only case): least-squares
 //!    rotation of the rays, zero translation; inlier rays of either view that lie in one plane
 //!    through its centre (points on an image line: a family of motions fits them) flag
@@ -185,11 +186,12 @@ fn general_pose(
             .map(|c| c + intrinsics_covariance(tv, &gated, &state)),
         iterations: sel.iterations.total(),
     };
-    let below_parallax_cut = final_rec.median_parallax_deg < tv.cfg.min_parallax_deg;
+    let direction_unseen = final_rec.median_parallax_deg < tv.cfg.min_parallax_deg
+        || !quality::translation_is_seen(data, &used, state.0.matrix(), tv.focal, chosen.sigma_px);
     let coplanar = quality::rays_are_coplanar(used.iter().map(|&k| &b1[k]))
         || quality::rays_are_coplanar(used.iter().map(|&k| &b2[k]));
     let flags: Vec<Reason> = [
-        (below_parallax_cut, Reason::LowParallax),
+        (direction_unseen, Reason::LowParallax),
         (chosen.ambiguous, Reason::PlanarAmbiguous),
         (coplanar, Reason::Degenerate),
     ]

@@ -93,7 +93,9 @@ pub struct RelativePose {
     /// Median parallax angle of the triangulated points, degrees.
     pub parallax_deg: f64,
     /// The translation direction is undetermined at its stated uncertainty: its sigma exceeds
-    /// [`QualityConfig::max_direction_sigma_deg`], the median parallax is under
+    /// [`QualityConfig::max_direction_sigma_deg`], the derotated disparities show no
+    /// translation above the pixel noise (a chi-square test at 3 standard scores), the median
+    /// parallax is under
     /// `min_parallax_deg`, or the motion is a pure rotation ([`vofront_robust::Reason::LowParallax`] in the
     /// quality's reasons).
     pub low_parallax: bool,
