@@ -320,6 +320,9 @@ fn direction_trust_follows_its_sigma_not_the_parallax() {
     }
 }
 
+/// A change of the normalized coordinates.
+type Remap<'a> = &'a dyn Fn(Vector2<f64>) -> Vector2<f64>;
+
 #[test]
 fn intrinsics_sensitivity_predicts_the_refit_under_changed_intrinsics() {
     // Noise-free correspondences: the least-squares estimate is the truth; with the
@@ -328,7 +331,7 @@ fn intrinsics_sensitivity_predicts_the_refit_under_changed_intrinsics() {
     let scene = common::make_scene(3, 300, 0.0, 0.0, false);
     let focal = 520.0;
     let normalized = |u: &Vector2<f64>| Vector2::new((u.x - 320.0) / focal, (u.y - 240.0) / focal);
-    let data_with = |map: &dyn Fn(Vector2<f64>) -> Vector2<f64>| {
+    let data_with = |map: Remap| {
         let mut data = Correspondences::default();
         for (a, b) in scene.u1.iter().zip(&scene.u2) {
             data.push(&map(normalized(a)), &map(normalized(b)));
@@ -341,7 +344,7 @@ fn intrinsics_sensitivity_predicts_the_refit_under_changed_intrinsics() {
     );
     let all: Vec<usize> = (0..scene.u1.len()).collect();
     let v = intrinsics_sensitivity(&data_with(&|p| p), &all, focal, &truth).expect("sensitivity");
-    let errors: [(f64, &dyn Fn(Vector2<f64>) -> Vector2<f64>); 3] = [
+    let errors: [(f64, Remap); 3] = [
         (1e-3, &|p| p * 1.001),
         (0.5, &|p| p - Vector2::new(0.5 / focal, 0.0)),
         (0.5, &|p| p - Vector2::new(0.0, 0.5 / focal)),

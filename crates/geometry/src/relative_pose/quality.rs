@@ -83,7 +83,7 @@ pub(super) fn translation_is_seen(
     sigma_px: f64,
 ) -> bool {
     let n = used.len();
-    if n < 2 || !(sigma_px > 0.0) {
+    if n < 2 || sigma_px.is_nan() || sigma_px <= 0.0 {
         return false;
     }
     let sum: f64 = used
