@@ -55,7 +55,7 @@ pub use estimators::{EssentialEstimator, HomographyEstimator, HomographyModel};
 pub use refine::{
     intrinsics_sensitivity, refine_maximum_likelihood, refine_relative_pose,
     refine_relative_pose_fit, sampson_covariance, sampson_information, tangent_basis,
-    MlRefineConfig, RelRefinement, RelState,
+    MlRefineConfig, RelRefinement, RelState, KEYPOINT_CELL_PX,
 };
 pub use types::{Model, RansacIterations, RelativePose, RelativePoseConfig};
 
