@@ -6,11 +6,12 @@ mod common;
 use nalgebra::{Matrix2, Matrix3, Rotation3, Vector2};
 use rand::rngs::StdRng;
 use rand::{Rng, SeedableRng};
-use vofront_geometry::lie::so3_log;
+use vofront_geometry::lie::{direction_angle_deg, so3_log};
 use vofront_geometry::relative_pose::{
-    estimate_relative_pose, tangent_basis, RelativePose, RelativePoseConfig,
+    estimate_relative_pose, intrinsics_sensitivity, refine_relative_pose, tangent_basis,
+    Correspondences, RelativePose, RelativePoseConfig,
 };
-use vofront_robust::{Reason, Verdict};
+use vofront_robust::{Loss, Reason, Verdict};
 
 /// Seeds per noise level of the calibration test.
 const SEEDS: u64 = 200;
@@ -67,7 +68,12 @@ fn calibration(noise: f64) -> ((f64, f64), (f64, f64)) {
             &scene.u1,
             &scene.u2,
             &common::camera(),
-            &RelativePoseConfig::default(),
+            // The synthetic camera is exact: no intrinsics uncertainty.
+            &RelativePoseConfig {
+                focal_uncertainty: 0.0,
+                principal_point_uncertainty_px: 0.0,
+                ..RelativePoseConfig::default()
+            },
         )
         .expect("a general scene has a pose");
         assert!(!rel.pure_rotation, "seed {seed}");
@@ -252,6 +258,111 @@ fn rays_in_one_plane_are_degenerate_never_ok() {
                 );
             }
             Err(e) => assert!(!e.to_string().is_empty()),
+        }
+    }
+}
+
+/// A forward motion (the driving case): `baseline` along the optical axis and a small turn.
+fn forward_scene(seed: u64, baseline: f64, noise: f64) -> common::Scene {
+    let pose = nalgebra::Isometry3::from_parts(
+        nalgebra::Translation3::new(0.01 * baseline, -0.02 * baseline, -baseline),
+        nalgebra::UnitQuaternion::from_scaled_axis(nalgebra::Vector3::new(0.0, 0.01, 0.002)),
+    );
+    common::make_scene_with_pose(seed, pose, 600, 0.0, noise, false)
+}
+
+#[test]
+fn direction_trust_follows_its_sigma_not_the_parallax() {
+    for seed in 0..5 {
+        // Under 1 degree of parallax (the former cut) but many precise matches: the direction
+        // is determined to well under the bound, and ok.
+        let scene = forward_scene(seed, 0.05, 0.3);
+        let rel = estimate_relative_pose(
+            &scene.u1,
+            &scene.u2,
+            &common::camera(),
+            &RelativePoseConfig::default(),
+        )
+        .expect("pose");
+        let (q, sigma) = (
+            &rel.quality,
+            rel.quality.uncertainty.translation_direction_sigma_deg,
+        );
+        let sigma = sigma.expect("direction sigma");
+        assert!(rel.parallax_deg < 1.0, "seed {seed}: {}", rel.parallax_deg);
+        assert_eq!(
+            q.verdict,
+            Verdict::Ok,
+            "seed {seed}: {:?} sigma {sigma}",
+            q.reasons
+        );
+        assert!(!rel.low_parallax);
+        let dir = direction_angle_deg(&rel.translation(), &scene.pose.translation.vector);
+        assert!(dir < 4.0 * sigma, "seed {seed}: {dir} deg at sigma {sigma}");
+        // A hundred times less baseline: the direction is undetermined at its sigma.
+        let scene = forward_scene(seed, 0.0005, 1.0);
+        let rel = estimate_relative_pose(
+            &scene.u1,
+            &scene.u2,
+            &common::camera(),
+            &RelativePoseConfig::default(),
+        )
+        .expect("pose");
+        let q = &rel.quality;
+        let dir = direction_angle_deg(&rel.translation(), &scene.pose.translation.vector);
+        assert!(
+            rel.low_parallax,
+            "seed {seed}: {:?} dir err {dir} parallax {} pure {}",
+            q.uncertainty.translation_direction_sigma_deg, rel.parallax_deg, rel.pure_rotation
+        );
+        assert!(q.reasons.contains(&Reason::LowParallax), "seed {seed}");
+        assert_ne!(q.verdict, Verdict::Ok, "seed {seed}");
+    }
+}
+
+/// A change of the normalized coordinates.
+type Remap<'a> = &'a dyn Fn(Vector2<f64>) -> Vector2<f64>;
+
+#[test]
+fn intrinsics_sensitivity_predicts_the_refit_under_changed_intrinsics() {
+    // Noise-free correspondences: the least-squares estimate is the truth; with the
+    // normalized coordinates scaled (a focal error) or shifted (a principal-point error) the
+    // refit moves by the predicted sensitivity times the error.
+    let scene = common::make_scene(3, 300, 0.0, 0.0, false);
+    let focal = 520.0;
+    let normalized = |u: &Vector2<f64>| Vector2::new((u.x - 320.0) / focal, (u.y - 240.0) / focal);
+    let data_with = |map: Remap| {
+        let mut data = Correspondences::default();
+        for (a, b) in scene.u1.iter().zip(&scene.u2) {
+            data.push(&map(normalized(a)), &map(normalized(b)));
+        }
+        data
+    };
+    let truth = (
+        scene.pose.rotation.to_rotation_matrix(),
+        scene.pose.translation.vector.normalize(),
+    );
+    let all: Vec<usize> = (0..scene.u1.len()).collect();
+    let v = intrinsics_sensitivity(&data_with(&|p| p), &all, focal, &truth).expect("sensitivity");
+    let errors: [(f64, Remap); 3] = [
+        (1e-3, &|p| p * 1.001),
+        (0.5, &|p| p - Vector2::new(0.5 / focal, 0.0)),
+        (0.5, &|p| p - Vector2::new(0.0, 0.5 / focal)),
+    ];
+    for (k, (size, map)) in errors.iter().enumerate() {
+        let refit = refine_relative_pose(&data_with(map), &all, focal, 1.0, Loss::Squared, truth);
+        let phi = so3_log(&(refit.0 * truth.0.inverse()));
+        let (b1, b2) = tangent_basis(&truth.1);
+        let moved = [phi.x, phi.y, phi.z, refit.1.dot(&b1), refit.1.dot(&b2)];
+        let predicted = v.column(k) * *size;
+        let scale = predicted.norm();
+        assert!(scale > 0.0, "column {k}");
+        for (i, m) in moved.iter().enumerate() {
+            assert!(
+                (m - predicted[i]).abs() < 0.05 * scale,
+                "column {k}, component {i}: refit {m}, predicted {}",
+                predicted[i]
+            );
         }
     }
 }

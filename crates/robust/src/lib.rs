@@ -64,7 +64,7 @@ pub use lm::{
 pub use loss::{Cauchy, Huber, Loss, RobustLoss, Squared, StudentT, Tukey};
 pub use normal::NormalEquations;
 pub use quality::{Quality, QualityConfig, Reason, Support, Uncertainty, Verdict};
-pub use sandwich::sandwich_covariance;
+pub use sandwich::{at_least, clustered_sandwich_covariance, sandwich_covariance};
 pub use scale::{mad_sigma, mad_sigma_about_zero, median_in_place};
 pub use schur::{Coupling, PointBlock, SchurStep, SchurSystem};
 pub use secant::secant_covariance;

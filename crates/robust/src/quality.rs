@@ -44,7 +44,9 @@ pub enum Reason {
     /// The consensus is within what random correspondences reach at the same threshold:
     /// `log10 NFA > QualityConfig::max_log10_nfa` (failed).
     NotBetterThanChance,
-    /// The rays of the two views are nearly parallel: translation direction undetermined
+    /// The translation direction is undetermined at the stated uncertainty: its predicted
+    /// standard deviation exceeds [`QualityConfig::max_direction_sigma_deg`] (the rays of the
+    /// two views are too nearly parallel for the noise), or no translation is seen at all
     /// (unreliable).
     LowParallax,
     /// A rotation alone explains the data: the translation is reported as zero (unreliable).
@@ -127,6 +129,11 @@ pub struct QualityConfig {
     pub min_pixels: usize,
     /// Largest predicted rotation standard deviation of an `ok` estimate, degrees (2).
     pub max_rotation_sigma_deg: f64,
+    /// Largest predicted translation-direction standard deviation (`sqrt(trace)` of its 2x2
+    /// covariance) of an `ok` two-view estimate, degrees (5). At 5 degrees RMS (3.5 per axis)
+    /// a direction is 20 degrees off with probability `exp(-16)`, if its covariance is right:
+    /// above it the direction is flagged [`Reason::LowParallax`].
+    pub max_direction_sigma_deg: f64,
 }
 
 impl Default for QualityConfig {
@@ -137,6 +144,7 @@ impl Default for QualityConfig {
             max_log10_nfa: -4.0,
             min_pixels: 1000,
             max_rotation_sigma_deg: 2.0,
+            max_direction_sigma_deg: 5.0,
         }
     }
 }
@@ -249,7 +257,8 @@ impl Quality {
     /// The record of an estimate with this support and the estimator's own `flags`; adds the
     /// support checks of `cfg` ([`Reason::TooFewInliers`], [`Reason::LowInlierRatio`],
     /// [`Reason::NotBetterThanChance`], [`Reason::TooFewPixels`], [`Reason::NotConverged`],
-    /// [`Reason::LargeUncertainty`]) and sets the verdict.
+    /// [`Reason::LargeUncertainty`], [`Reason::LowParallax`] from the direction sigma) and
+    /// sets the verdict.
     pub fn judge(
         support: Support,
         sigma: f64,
@@ -285,6 +294,12 @@ impl Quality {
             .is_some_and(|s| s.is_nan() || s > cfg.max_rotation_sigma_deg)
         {
             reasons.push(Reason::LargeUncertainty);
+        }
+        if uncertainty
+            .translation_direction_sigma_deg
+            .is_some_and(|s| s.is_nan() || s > cfg.max_direction_sigma_deg)
+        {
+            reasons.push(Reason::LowParallax);
         }
         reasons.sort();
         reasons.dedup();
@@ -457,6 +472,32 @@ mod tests {
             ..Support::new(10, 10)
         };
         assert_eq!(judge(pixels, &[]).reasons, vec![Reason::TooFewPixels]);
+    }
+
+    #[test]
+    fn an_undetermined_direction_is_low_parallax() {
+        let cfg = QualityConfig::default();
+        let good = Support {
+            log10_nfa: Some(-50.0),
+            ..Support::new(200, 300)
+        };
+        let with_sigma = |deg: f64| {
+            let u = Uncertainty {
+                translation_direction_sigma_deg: Some(deg),
+                ..Uncertainty::default()
+            };
+            Quality::judge(good, 1.0, 3, true, u, &[], &cfg)
+        };
+        assert_eq!(
+            with_sigma(0.5 * cfg.max_direction_sigma_deg).verdict,
+            Verdict::Ok
+        );
+        let q = with_sigma(2.0 * cfg.max_direction_sigma_deg);
+        assert_eq!(
+            (q.verdict, q.reasons),
+            (Verdict::Unreliable, vec![Reason::LowParallax])
+        );
+        assert_eq!(with_sigma(f64::NAN).reasons, vec![Reason::LowParallax]);
     }
 
     #[test]

@@ -18,8 +18,10 @@
 //!    maximum-likelihood refit ([`refine_maximum_likelihood`]: Huber on the Sampson distance at
 //!    a noise scale estimated from its own residuals, `3 sigma` gate, re-selection until the
 //!    gated set is stable); final inliers and points from the refined pose (here);
-//! 5. a median parallax under `min_parallax_deg` flags `low_parallax` (translation direction
-//!    poorly determined); when a rotation alone explains at least 90% of the model's inliers
+//! 5. `low_parallax` flags a translation direction undetermined at its stated uncertainty
+//!    (its sigma above `quality.max_direction_sigma_deg`, no translation seen above the noise
+//!    in the derotated disparities, or a median parallax under the optional
+//!    `min_parallax_deg`); when a rotation alone explains at least 90% of the model's inliers
 //!    the motion is a pure rotation (`rotation`, the rotation-only case): least-squares
 //!    rotation of the rays, zero translation; inlier rays of either view that lie in one plane
 //!    through its centre (points on an image line: a family of motions fits them) flag
@@ -28,7 +30,9 @@
 //!    [`GeometryError::NoModel`]; otherwise support, the a-contrario chance test and the
 //!    covariance `sigma^2 (J^T J)^-1` of `(R, t)` from the Sampson Jacobian on the refit's
 //!    gated correspondences (widened along any axis where the cost rises less than its
-//!    quadratic model, [`sampson_covariance`]) decide `ok`, `unreliable` or `failed`.
+//!    quadratic model, [`sampson_covariance`]; raised where the errors of neighbouring
+//!    keypoints are correlated; plus the intrinsics' uncertainty through
+//!    [`intrinsics_sensitivity`]) decide `ok`, `unreliable` or `failed`.
 //!
 //! Module layers (each imports only those above it): `correspondences`, `types` and
 //! [`crate::residual`] (the one place each error is written); `refine` (the Sampson
@@ -49,8 +53,9 @@ mod types;
 pub use correspondences::Correspondences;
 pub use estimators::{EssentialEstimator, HomographyEstimator, HomographyModel};
 pub use refine::{
-    refine_maximum_likelihood, refine_relative_pose, refine_relative_pose_fit, sampson_covariance,
-    sampson_information, tangent_basis, MlRefineConfig, RelRefinement, RelState,
+    intrinsics_sensitivity, refine_maximum_likelihood, refine_relative_pose,
+    refine_relative_pose_fit, sampson_covariance, sampson_information, tangent_basis,
+    MlRefineConfig, RelRefinement, RelState, KEYPOINT_CELL_PX,
 };
 pub use types::{Model, RansacIterations, RelativePose, RelativePoseConfig};
 
@@ -112,6 +117,28 @@ pub fn estimate_relative_pose(
     general_pose(&tv, &selection, chosen)
 }
 
+/// The covariance of `(phi, a, b)` that the intrinsics' uncertainty adds,
+/// `V diag(sigma_f^2, sigma_c^2, sigma_c^2) V^T` ([`intrinsics_sensitivity`],
+/// [`RelativePoseConfig::focal_uncertainty`],
+/// [`RelativePoseConfig::principal_point_uncertainty_px`]); zero when the sensitivity is
+/// unknown.
+fn intrinsics_covariance(
+    tv: &TwoView,
+    indices: &[usize],
+    state: &refine::RelState,
+) -> nalgebra::Matrix5<f64> {
+    let prior = nalgebra::Vector3::new(
+        tv.cfg.focal_uncertainty,
+        tv.cfg.principal_point_uncertainty_px,
+        tv.cfg.principal_point_uncertainty_px,
+    )
+    .map(|s| s * s);
+    intrinsics_sensitivity(&tv.data, indices, tv.focal, state)
+        .map_or_else(nalgebra::Matrix5::zeros, |v| {
+            v * nalgebra::Matrix3::from_diagonal(&prior) * v.transpose()
+        })
+}
+
 /// The pose of a general (translating) motion from the chosen refined state: the final
 /// inliers (Sampson distance under the threshold) and their points from the chirality test,
 /// the flags, and the quality record with the covariance ([`sampson_covariance`]) on the
@@ -155,14 +182,16 @@ fn general_pose(
         sample: MIN_CORRESPONDENCES,
         sigma_px: chosen.sigma_px,
         translation: true,
-        covariance: sampson_covariance(data, &gated, tv.focal, &state, chosen.sigma_px),
+        covariance: sampson_covariance(data, &gated, tv.focal, &state, chosen.sigma_px)
+            .map(|c| c + intrinsics_covariance(tv, &gated, &state)),
         iterations: sel.iterations.total(),
     };
-    let low_parallax = final_rec.median_parallax_deg < tv.cfg.min_parallax_deg;
+    let direction_unseen = final_rec.median_parallax_deg < tv.cfg.min_parallax_deg
+        || !quality::translation_is_seen(data, &used, state.0.matrix(), tv.focal, chosen.sigma_px);
     let coplanar = quality::rays_are_coplanar(used.iter().map(|&k| &b1[k]))
         || quality::rays_are_coplanar(used.iter().map(|&k| &b2[k]));
     let flags: Vec<Reason> = [
-        (low_parallax, Reason::LowParallax),
+        (direction_unseen, Reason::LowParallax),
         (chosen.ambiguous, Reason::PlanarAmbiguous),
         (coplanar, Reason::Degenerate),
     ]
@@ -175,18 +204,19 @@ fn general_pose(
     }
     let inliers = tv.input_mask(&used);
     let pose = isometry(&state.0, &state.1);
+    let quality = quality::judge(&evidence, &flags, &tv.cfg.quality);
     Ok(RelativePose {
         pose,
         model: chosen.model,
         inliers,
         points,
         parallax_deg: final_rec.median_parallax_deg,
-        low_parallax,
+        low_parallax: quality.reasons.contains(&Reason::LowParallax),
         pure_rotation: false,
         ambiguous: chosen.ambiguous,
         alternative: chosen.alternative,
         homography_score_ratio: sel.ratio,
         iterations: sel.iterations,
-        quality: quality::judge(&evidence, &flags, &tv.cfg.quality),
+        quality,
     })
 }

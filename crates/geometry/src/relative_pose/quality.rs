@@ -62,6 +62,42 @@ pub(super) fn rays_are_coplanar<'a>(rays: impl Iterator<Item = &'a Vector3<f64>>
     eigen[2] <= COPLANAR_RAYS * eigen[1]
 }
 
+/// Standard scores of the derotated disparity above its noise level at which a translation is
+/// seen: 3 (a motion without translation exceeds it with probability 0.13%).
+const TRANSLATION_SEEN_Z: f64 = 3.0;
+
+/// Whether the correspondences `used` show a translation at all: their disparity after
+/// derotation by `rotation`, `d_i = pi(R x1_i) - x2_i` (normalized coordinates, `pi` the
+/// perspective division), exceeds what pixel noise alone leaves. Without translation,
+/// `S = sum_i f^2 |d_i|^2 / (2 sigma^2)` is chi-square with `k = 2 n - 3` degrees of freedom
+/// (two coordinates per correspondence, the noise `sigma` pixels of the Sampson distance in
+/// each image, three fitted rotation parameters): a translation is seen when
+/// `(S - k) / sqrt(2 k) > 3`. Below that the epipolar geometry fits noise: the Sampson cost
+/// of a direction is then a quadratic form of noise vectors whose curvature states a finite,
+/// meaningless precision, and no widening of its covariance can tell.
+pub(super) fn translation_is_seen(
+    data: &Correspondences,
+    used: &[usize],
+    rotation: &Matrix3<f64>,
+    focal: f64,
+    sigma_px: f64,
+) -> bool {
+    let n = used.len();
+    if n < 2 || sigma_px.is_nan() || sigma_px <= 0.0 {
+        return false;
+    }
+    let sum: f64 = used
+        .iter()
+        .filter_map(|&i| {
+            let p = rotation * data.ray1(i);
+            (p.z > 0.0).then(|| (p.xy() / p.z - data.p2(i)).norm_squared())
+        })
+        .sum();
+    let k = (2 * n).saturating_sub(3).max(1) as f64;
+    let s = sum * focal * focal / (2.0 * sigma_px * sigma_px);
+    (s - k) / (2.0 * k).sqrt() > TRANSLATION_SEEN_Z
+}
+
 /// What [`judge`] needs beyond the estimator's flags.
 pub(super) struct Evidence {
     /// Input correspondences.

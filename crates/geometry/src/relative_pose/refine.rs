@@ -8,9 +8,12 @@
 //! `E = [t]_x R` ([`crate::residual::Epipolar`]); analytic Jacobians. A correspondence with a
 //! degenerate denominator is an outlier (no row), as everywhere in [`crate::residual`].
 
-use nalgebra::{Matrix3, Matrix5, Rotation3, SVector, Vector3};
+use std::collections::HashMap;
+
+use nalgebra::{Matrix3, Matrix5, Rotation3, SMatrix, SVector, Vector2, Vector3};
 use vofront_robust::{
-    irls, Convergence, IrlsConfig, LmConfig, Loss, NormalEquations, Problem, Rows, ScaleMode,
+    at_least, clustered_sandwich_covariance, irls, Convergence, IrlsConfig, LmConfig, Loss,
+    NormalEquations, Problem, Rows, ScaleMode,
 };
 
 use super::correspondences::Correspondences;
@@ -128,9 +131,53 @@ pub fn sampson_information(
     normal.hessian()
 }
 
+/// Side (pixels) of the image cells whose keypoints' errors the covariance takes as
+/// correlated: 64 px, twice the 31 px patch an ORB keypoint's position and descriptor rest on
+/// at the finest level and more than that patch at the next three levels (1.2^3 x 31 = 54
+/// px). Keypoints closer than a patch share pixels, blur and the structure they sit on; lens
+/// and calibration errors vary smoothly across the image.
+pub const KEYPOINT_CELL_PX: f64 = 64.0;
+
+/// The cluster-robust covariance of `delta` ([`vofront_robust::clustered_sandwich_covariance`]:
+/// least squares on the Sampson distances of `indices` at `state`, clusters the
+/// [`KEYPOINT_CELL_PX`] cells of the points' positions in image 1). Its meat weighs each
+/// correspondence by its own squared residual, so that keypoints of coarse pyramid levels
+/// (noise `1.2^k` px at level `k`) count with their larger noise, and sums the scores within
+/// a cell before squaring, so that errors shared by neighbouring keypoints do not average out.
+fn clustered_sampson_covariance(
+    data: &Correspondences,
+    indices: &[usize],
+    focal: f64,
+    state: &RelState,
+    sigma_px: f64,
+) -> Option<Matrix5<f64>> {
+    let mut cells: HashMap<(i64, i64), usize> = HashMap::new();
+    let mut rows = Vec::with_capacity(indices.len());
+    let mut one = Rows::default();
+    for &i in indices {
+        one.clear();
+        SampsonProblem {
+            data,
+            indices: &[i],
+            focal,
+        }
+        .evaluate(state, &mut one);
+        let (Some(j), Some(&r)) = (one.jacobians.first(), one.residuals.first()) else {
+            continue;
+        };
+        let p = data.p1(i) * (focal / KEYPOINT_CELL_PX);
+        let key = (p.x.floor() as i64, p.y.floor() as i64);
+        let next = cells.len();
+        rows.push((*j, r, *cells.entry(key).or_insert(next)));
+    }
+    clustered_sandwich_covariance(rows, cells.len(), &Loss::Squared, sigma_px, &[false; 5])
+}
+
 /// Covariance of `delta = (phi, a, b)` (radians and tangent coordinates) of the estimate
 /// `state` from the Sampson distances (pixels) of `indices` at noise scale `sigma_px`:
-/// `sigma_px^2 (J^T J)^-1` ([`sampson_information`]) widened along each principal axis where
+/// `sigma_px^2 (J^T J)^-1` ([`sampson_information`]), raised to the cluster-robust covariance
+/// where that is wider ([`vofront_robust::at_least`], [`KEYPOINT_CELL_PX`]: correlated and
+/// level-dependent keypoint errors), then widened along each principal axis where
 /// the least-squares Sampson cost `sum_i r_i^2 / sigma_px^2` rises less than its quadratic
 /// model ([`vofront_robust::secant_covariance`]; at low parallax the residuals of points near
 /// the epipole are far from linear in the translation direction). `None` when `J^T J` is
@@ -146,6 +193,9 @@ pub fn sampson_covariance(
         .try_inverse()
         .map(|inv| inv * (sigma_px * sigma_px))
         .filter(|c| c.iter().all(|v| v.is_finite()) && (0..5).all(|i| c[(i, i)] >= 0.0))?;
+    let local = clustered_sampson_covariance(data, indices, focal, state, sigma_px)
+        .filter(|c| c.iter().all(|v| v.is_finite()))
+        .map_or(local, |c| at_least(&local, &c));
     let problem = SampsonProblem {
         data,
         indices,
@@ -166,6 +216,83 @@ pub fn sampson_covariance(
     Some(vofront_robust::secant_covariance(&local, |delta| {
         cost(&problem.retract(state, delta)) - at_estimate
     }))
+}
+
+/// Sensitivity of the least-squares estimate `state` on the Sampson distances of `indices` to
+/// errors of the intrinsics, as the columns of a 5x3 matrix `V`: `d delta / d s` for a
+/// relative focal-length error `s` (the normalized coordinates of both views scaled by
+/// `1 + s`, as the focal length `f / (1 + s)` would give) and `d delta / d c_x`,
+/// `d delta / d c_y` for a principal-point error in pixels (both views' normalized coordinates
+/// shifted by `-c / f`). Implicit differentiation of the normal equations,
+/// `dV = -(J^T J)^-1 J^T dr/dk`, with `dr/dk` by central differences. `None` when `J^T J` is
+/// singular.
+///
+/// With intrinsics known to the covariance `S` (3x3 over `(s, c_x, c_y)`), the estimate
+/// carries the covariance `V S V^T` beyond its noise covariance: an intrinsics error scales or
+/// shifts every ray alike (the rotation's pan and tilt, the epipole), so that no number of
+/// correspondences averages it out.
+pub fn intrinsics_sensitivity(
+    data: &Correspondences,
+    indices: &[usize],
+    focal: f64,
+    state: &RelState,
+) -> Option<SMatrix<f64, 5, 3>> {
+    /// Steps of the central differences: relative focal error, principal point (pixels).
+    const STEPS: [f64; 3] = [1e-4, 0.05, 0.05];
+    let perturbed = |k: usize, sign: f64| {
+        let h = sign * STEPS[k];
+        let map = |p: Vector2<f64>| match k {
+            0 => p * (1.0 + h),
+            1 => p - Vector2::new(h / focal, 0.0),
+            _ => p - Vector2::new(0.0, h / focal),
+        };
+        let mut out = Correspondences::default();
+        for &i in indices {
+            out.push(&map(data.p1(i)), &map(data.p2(i)));
+        }
+        out
+    };
+    let at = perturbed(0, 0.0);
+    let sets: Vec<(Correspondences, Correspondences)> = (0..3)
+        .map(|k| (perturbed(k, 1.0), perturbed(k, -1.0)))
+        .collect();
+    let mut one = Rows::default();
+    let mut row = |set: &Correspondences, k: usize| {
+        one.clear();
+        SampsonProblem {
+            data: set,
+            indices: &[k],
+            focal,
+        }
+        .evaluate(state, &mut one);
+        one.jacobians
+            .first()
+            .copied()
+            .zip(one.residuals.first().copied())
+    };
+    let mut normal = NormalEquations::<5>::new();
+    let mut cross = SMatrix::<f64, 5, 3>::zeros();
+    'rows: for k in 0..indices.len() {
+        let Some((j, _)) = row(&at, k) else {
+            continue;
+        };
+        let mut dr = [0.0; 3];
+        for (c, (plus, minus)) in sets.iter().enumerate() {
+            let (Some((_, rp)), Some((_, rm))) = (row(plus, k), row(minus, k)) else {
+                continue 'rows;
+            };
+            dr[c] = (rp - rm) / (2.0 * STEPS[c]);
+        }
+        normal.add(&j, 0.0, 1.0);
+        for (c, d) in dr.iter().enumerate() {
+            cross.set_column(c, &(cross.column(c) + j * *d));
+        }
+    }
+    normal
+        .hessian()
+        .try_inverse()
+        .map(|inv| -(inv * cross))
+        .filter(|v| v.iter().all(|x| x.is_finite()))
 }
 
 /// Refines `(R, t)` on the correspondences `indices` with `loss` on the Sampson distance in

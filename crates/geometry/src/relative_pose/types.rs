@@ -16,8 +16,24 @@ pub struct RelativePoseConfig {
     /// Nonlinear refinement of `(R, t)` on the inliers.
     pub refine: bool,
     /// Median parallax (degrees) below which `low_parallax` flags the translation direction as
-    /// poorly determined.
+    /// poorly determined regardless of its uncertainty (0, no such cut: the flag follows the
+    /// direction's predicted sigma, [`QualityConfig::max_direction_sigma_deg`]); a caller that
+    /// needs parallax for its own reasons (triangulating a map) may set it.
     pub min_parallax_deg: f64,
+    /// Relative standard deviation of the camera's focal length (0.005: a calibration good to
+    /// half a percent, as checkerboard calibrations and published dataset calibrations are;
+    /// the KITTI calibration and its ground truth disagree by 0.9%). A focal error scales the
+    /// rotation's pan and tilt and moves the epipole for every correspondence alike, so it is
+    /// added to the covariance of `(R, t)` as `focal_uncertainty^2 v v^T` with `v` the
+    /// estimate's sensitivity to it ([`super::intrinsics_sensitivity`]). 0 for exact
+    /// intrinsics.
+    pub focal_uncertainty: f64,
+    /// Standard deviation of the principal point, pixels, each axis (2: calibration toolboxes
+    /// state 0.5-1 px for it, and independent calibrations of one camera differ by a few
+    /// pixels). It moves the epipole, hence the translation direction by about
+    /// `principal_point_uncertainty / f` radians in forward motion, and is added to the
+    /// covariance as the focal term is. 0 for exact intrinsics.
+    pub principal_point_uncertainty_px: f64,
     /// `S_H / (S_H + S_E)` above which the homography is used.
     pub homography_ratio: f64,
     /// Points farther than this many baselines are not counted by the chirality test.
@@ -31,7 +47,9 @@ impl Default for RelativePoseConfig {
         Self {
             ransac: RansacConfig::default(),
             refine: true,
-            min_parallax_deg: 1.0,
+            min_parallax_deg: 0.0,
+            focal_uncertainty: 0.005,
+            principal_point_uncertainty_px: 2.0,
             homography_ratio: 0.45,
             far_distance: 50.0,
             quality: QualityConfig::default(),
@@ -74,8 +92,12 @@ pub struct RelativePose {
     pub points: Vec<Option<Point3<f64>>>,
     /// Median parallax angle of the triangulated points, degrees.
     pub parallax_deg: f64,
-    /// Median parallax under `min_parallax_deg` (or a pure rotation): the translation direction
-    /// is poorly determined.
+    /// The translation direction is undetermined at its stated uncertainty: its sigma exceeds
+    /// [`QualityConfig::max_direction_sigma_deg`], the derotated disparities show no
+    /// translation above the pixel noise (a chi-square test at 3 standard scores), the median
+    /// parallax is under
+    /// `min_parallax_deg`, or the motion is a pure rotation ([`vofront_robust::Reason::LowParallax`] in the
+    /// quality's reasons).
     pub low_parallax: bool,
     /// A rotation alone explains the correspondences: the translation is reported as zero and
     /// the rotation is the least-squares rotation of the rays.
