@@ -218,7 +218,15 @@ pub fn run(args: &OdometryArgs) -> Result<u8, String> {
         fps: args.fps,
         ..DatasetConfig::default()
     };
-    let mut dataset = Dataset::open_with(&args.dataset, &config).map_err(|e| e.to_string())?;
+    let mut dataset = if args.dataset.is_file() || args.topics.is_given() {
+        Dataset::open_bag(&args.dataset, &config, &args.topics.topics())
+    } else {
+        Dataset::open_with(&args.dataset, &config)
+    }
+    .map_err(|e| e.to_string())?;
+    for note in dataset.notes() {
+        eprintln!("note: {note}");
+    }
     if let Some(scale) = args.depth_scale {
         if !(scale.is_finite() && scale > 0.0) {
             return Err(format!("--depth-scale {scale}: must be a positive number"));
