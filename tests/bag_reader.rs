@@ -3,7 +3,6 @@
 //! stamps), damaged bags (cut off, corrupted CDR, random bytes) and a tracked sequence that
 //! must match its image folder.
 
-use std::collections::BTreeMap;
 use std::fs;
 use std::io::Cursor;
 use std::path::{Path, PathBuf};
@@ -13,7 +12,10 @@ use image::{DynamicImage, GrayImage, ImageFormat, Luma};
 use proptest::prelude::*;
 use proptest::test_runner::{Config, RngAlgorithm, TestRng, TestRunner};
 use vofront::core::{Camera, Distortion, KannalaBrandt, Lens, Pinhole};
-use vofront::dataset::bag::cdr::CdrWriter;
+use vofront::dataset::bag::write::{
+    camera_info_message, camera_message, compressed_image_message, image_message, BagWriter,
+    ImageLayout,
+};
 use vofront::dataset::bag::{messages, BagError, BagTopics, MessageError};
 use vofront::dataset::{CameraSource, Dataset, DatasetConfig, DatasetError, DatasetKind};
 use vofront::odometry::registry::{Session, TrackerKind, TrackerOptions};
@@ -59,36 +61,14 @@ enum Layout {
     Plain,
 }
 
-/// Writes `msgs` in order to an MCAP byte buffer with the `mcap` crate.
+/// Writes `msgs` in order to an MCAP byte buffer.
 fn bag_bytes(msgs: &[Msg], layout: Layout) -> Vec<u8> {
-    let options = match layout {
-        Layout::Chunked => mcap::WriteOptions::new(),
-        Layout::Plain => mcap::WriteOptions::new().use_chunks(false),
-    };
-    let mut w = options.create(Cursor::new(Vec::new())).expect("writer");
-    let mut channels = BTreeMap::new();
-    for (seq, m) in msgs.iter().enumerate() {
-        let id = match channels.get(m.topic) {
-            Some(&id) => id,
-            None => {
-                let schema = w.add_schema(m.schema, "ros2msg", b"").expect("schema");
-                let id = w
-                    .add_channel(schema, m.topic, "cdr", &BTreeMap::new())
-                    .expect("channel");
-                channels.insert(m.topic, id);
-                id
-            }
-        };
-        let header = mcap::records::MessageHeader {
-            channel_id: id,
-            sequence: seq as u32,
-            log_time: m.ns,
-            publish_time: m.ns,
-        };
-        w.write_to_known_channel(&header, &m.data).expect("message");
+    let chunked = matches!(layout, Layout::Chunked);
+    let mut w = BagWriter::new(Cursor::new(Vec::new()), chunked).expect("writer");
+    for m in msgs {
+        w.write(m.topic, m.schema, m.ns, &m.data).expect("message");
     }
-    w.finish().expect("finish");
-    w.into_inner().into_inner()
+    w.finish().expect("finish").into_inner()
 }
 
 fn write_bag(dir: &Path, name: &str, msgs: &[Msg], layout: Layout) -> PathBuf {
@@ -97,69 +77,23 @@ fn write_bag(dir: &Path, name: &str, msgs: &[Msg], layout: Layout) -> PathBuf {
     path
 }
 
-fn header(w: &mut CdrWriter, ns: u64) {
-    w.i32((ns / 1_000_000_000) as i32)
-        .u32((ns % 1_000_000_000) as u32)
-        .string("camera");
-}
-
-/// A `sensor_msgs/msg/Image`; `step` bytes per row (padding filled with 0xEE).
+/// A `sensor_msgs/msg/Image` of packed `rows`, each padded to `step` bytes.
 fn image_msg(
     ns: u64,
-    (w, h): (usize, usize),
+    (width, height): (usize, usize),
     encoding: &str,
     big_endian: bool,
     step: usize,
     rows: &[u8],
 ) -> Vec<u8> {
-    let row = rows.len() / h;
-    let mut data = Vec::new();
-    for r in rows.chunks(row) {
-        data.extend_from_slice(r);
-        data.resize(data.len() + step - row, 0xEE);
-    }
-    let mut c = if big_endian {
-        CdrWriter::big_endian()
-    } else {
-        CdrWriter::new()
+    let layout = ImageLayout {
+        width,
+        height,
+        encoding,
+        big_endian,
+        step,
     };
-    header(&mut c, ns);
-    c.u32(h as u32)
-        .u32(w as u32)
-        .string(encoding)
-        .u8(u8::from(big_endian))
-        .u32(step as u32)
-        .bytes(&data);
-    c.finish()
-}
-
-fn compressed_msg(ns: u64, format: &str, data: &[u8]) -> Vec<u8> {
-    let mut c = CdrWriter::new();
-    header(&mut c, ns);
-    c.string(format).bytes(data);
-    c.finish()
-}
-
-fn camera_info_msg(
-    ns: u64,
-    (w, h): (usize, usize),
-    model: &str,
-    d: &[f64],
-    k: [f64; 4],
-    tx: f64,
-) -> Vec<u8> {
-    let [fx, fy, cx, cy] = k;
-    let mut c = CdrWriter::new();
-    header(&mut c, ns);
-    c.u32(h as u32).u32(w as u32).string(model).f64s(d, true);
-    c.f64s(&[fx, 0.0, cx, 0.0, fy, cy, 0.0, 0.0, 1.0], false);
-    c.f64s(&[1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0], false);
-    c.f64s(
-        &[fx, 0.0, cx, tx, 0.0, fy, cy, 0.0, 0.0, 0.0, 1.0, 0.0],
-        false,
-    );
-    c.u32(0).u32(0).u32(0).u32(0).u32(0).u32(0).u8(0);
-    c.finish()
+    image_message(ns, layout, rows)
 }
 
 fn mono8_msg(topic: &'static str, ns: u64, img: &GrayImage) -> Msg {
@@ -229,14 +163,7 @@ fn rendered_sequence_tracks_alike_as_folder_and_as_bag() {
             topic: "/cam/rgb/camera_info",
             schema: messages::CAMERA_INFO,
             ns,
-            data: camera_info_msg(
-                ns,
-                (160, 120),
-                "plumb_bob",
-                &[0.0; 5],
-                [131.25, 131.25, 79.5, 59.5],
-                0.0,
-            ),
+            data: camera_message(ns, (160, 120), &camera),
         });
     }
     let path = write_bag(&dir.0, "seq.mcap", &msgs, Layout::Chunked);
@@ -373,12 +300,16 @@ fn compressed_png_is_exact_and_jpeg_close() {
             .unwrap();
         bytes.into_inner()
     };
-    let png =
-        messages::intensity(&compressed_msg(0, "png", &encode(ImageFormat::Png)), true).unwrap();
+    let png = messages::intensity(
+        &compressed_image_message(0, "png", &encode(ImageFormat::Png)),
+        true,
+    )
+    .unwrap();
     assert_eq!(png, vofront::image::Image::from_gray_owned(grey.clone()));
     // JPEG: what the image crate decodes from the same bytes, near the original.
     let jpeg_bytes = encode(ImageFormat::Jpeg);
-    let jpeg = messages::intensity(&compressed_msg(0, "jpeg", &jpeg_bytes), true).unwrap();
+    let jpeg =
+        messages::intensity(&compressed_image_message(0, "jpeg", &jpeg_bytes), true).unwrap();
     let decoded = image::load_from_memory(&jpeg_bytes).unwrap().into_luma8();
     assert_eq!(jpeg, vofront::image::Image::from_gray_owned(decoded));
     let mean_error = grey
@@ -387,7 +318,7 @@ fn compressed_png_is_exact_and_jpeg_close() {
         .sum::<f64>()
         / f64::from(32 * 24);
     assert!(mean_error < 8.0, "jpeg mean error {mean_error}");
-    let garbage = compressed_msg(0, "png", &[1, 2, 3]);
+    let garbage = compressed_image_message(0, "png", &[1, 2, 3]);
     assert!(matches!(
         messages::intensity(&garbage, true),
         Err(MessageError::Compressed { .. })
@@ -398,7 +329,7 @@ fn compressed_png_is_exact_and_jpeg_close() {
 fn camera_info_models_become_cameras_or_clear_errors() {
     let k = [500.0, 501.0, 320.0, 240.0];
     let info = |model: &str, d: &[f64]| {
-        messages::camera_info(&camera_info_msg(5, (640, 480), model, d, k, 0.0))
+        messages::camera_info(&camera_info_message(5, (640, 480), model, d, k, 0.0))
     };
     let pinhole = Pinhole::new(500.0, 501.0, 320.0, 240.0).unwrap();
     let plumb = info("plumb_bob", &[0.1, -0.2, 0.001, 0.002, 0.05]).unwrap();
@@ -422,6 +353,9 @@ fn camera_info_models_become_cameras_or_clear_errors() {
         Lens::from(KannalaBrandt::new([0.01, -0.02, 0.003, -0.001]).unwrap())
     );
     assert_eq!(info("", &[]).unwrap().camera, Camera::pinhole(pinhole));
+    let round_trip = |c: Camera| messages::camera_info(&camera_message(0, (640, 480), &c)).unwrap();
+    assert_eq!(round_trip(fisheye.camera).camera, fisheye.camera);
+    assert_eq!(round_trip(plumb.camera).camera, plumb.camera);
     let err = info(
         "rational_polynomial",
         &[0.1, -0.2, 0.0, 0.0, 0.0, 0.3, 0.0, 0.0],
@@ -432,7 +366,7 @@ fn camera_info_models_become_cameras_or_clear_errors() {
         info("fov", &[0.9]),
         Err(MessageError::Calibration(_))
     ));
-    let zero = messages::camera_info(&camera_info_msg(
+    let zero = messages::camera_info(&camera_info_message(
         0,
         (640, 480),
         "plumb_bob",
@@ -465,13 +399,13 @@ fn topics_are_picked_matched_by_stamp_and_named_in_errors() {
             topic: "/left/camera_info",
             schema: messages::CAMERA_INFO,
             ns,
-            data: camera_info_msg(ns, (8, 6), "plumb_bob", &[], [10.0, 10.0, 4.0, 3.0], 0.0),
+            data: camera_info_message(ns, (8, 6), "plumb_bob", &[], [10.0, 10.0, 4.0, 3.0], 0.0),
         });
         msgs.push(Msg {
             topic: "/right/camera_info",
             schema: messages::CAMERA_INFO,
             ns,
-            data: camera_info_msg(ns, (8, 6), "plumb_bob", &[], [10.0, 10.0, 4.0, 3.0], -5.0),
+            data: camera_info_message(ns, (8, 6), "plumb_bob", &[], [10.0, 10.0, 4.0, 3.0], -5.0),
         });
     }
     let path = write_bag(&dir.0, "two.mcap", &msgs, Layout::Chunked);

@@ -23,6 +23,7 @@
 pub mod cdr;
 pub mod messages;
 pub mod topics;
+pub mod write;
 
 use std::collections::HashMap;
 use std::path::{Path, PathBuf};

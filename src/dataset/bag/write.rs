@@ -1,0 +1,165 @@
+//! Writing ROS 2 bags: the CDR of `sensor_msgs/msg/Image`, `CompressedImage` and `CameraInfo`
+//! ([`image_message`], [`compressed_image_message`], [`camera_info_message`]) and
+//! [`BagWriter`], an MCAP file of such messages (zstd chunks, one channel per topic), as
+//! rosbag2 writes them. Used by the tests and examples that make bags from rendered
+//! sequences.
+
+use std::collections::BTreeMap;
+use std::io::{Seek, Write};
+
+use vofront_core::camera::{Camera, Lens};
+
+use super::cdr::CdrWriter;
+
+/// A `std_msgs/msg/Header` at `stamp_ns` (nanoseconds) with `frame_id` `camera`.
+fn header(w: &mut CdrWriter, stamp_ns: u64) {
+    w.i32((stamp_ns / 1_000_000_000) as i32)
+        .u32((stamp_ns % 1_000_000_000) as u32)
+        .string("camera");
+}
+
+/// The geometry of an [`image_message`].
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct ImageLayout<'a> {
+    /// Pixels per row.
+    pub width: usize,
+    /// Rows.
+    pub height: usize,
+    /// `encoding` (`mono8`, `rgb8`, `16UC1`, ...).
+    pub encoding: &'a str,
+    /// Multi-byte pixels (and the CDR) in big-endian order.
+    pub big_endian: bool,
+    /// Bytes per stored row (at least `width` times the bytes per pixel; the rest is padding).
+    pub step: usize,
+}
+
+/// A `sensor_msgs/msg/Image` of `rows` (`height` rows of packed pixels, each padded to
+/// `step` bytes with `0xEE`).
+pub fn image_message(stamp_ns: u64, layout: ImageLayout<'_>, rows: &[u8]) -> Vec<u8> {
+    let row = rows.len() / layout.height.max(1);
+    let mut data = Vec::with_capacity(layout.step * layout.height);
+    for r in rows.chunks(row.max(1)) {
+        data.extend_from_slice(r);
+        data.resize(data.len() + layout.step.saturating_sub(row), 0xEE);
+    }
+    let mut c = if layout.big_endian {
+        CdrWriter::big_endian()
+    } else {
+        CdrWriter::new()
+    };
+    header(&mut c, stamp_ns);
+    c.u32(layout.height as u32)
+        .u32(layout.width as u32)
+        .string(layout.encoding)
+        .u8(u8::from(layout.big_endian))
+        .u32(layout.step as u32)
+        .bytes(&data);
+    c.finish()
+}
+
+/// A `sensor_msgs/msg/CompressedImage` (`format` `png` or `jpeg`, `data` the file's bytes).
+pub fn compressed_image_message(stamp_ns: u64, format: &str, data: &[u8]) -> Vec<u8> {
+    let mut c = CdrWriter::new();
+    header(&mut c, stamp_ns);
+    c.string(format).bytes(data);
+    c.finish()
+}
+
+/// A `sensor_msgs/msg/CameraInfo` with distortion model `model` and coefficients `d`,
+/// `K = [fx 0 cx; 0 fy cy; 0 0 1]` from `k = [fx, fy, cx, cy]`, identity `R` and
+/// `P = [fx 0 cx tx; 0 fy cy 0; 0 0 1 0]` (`tx = -fx * baseline` for a right camera).
+pub fn camera_info_message(
+    stamp_ns: u64,
+    (width, height): (usize, usize),
+    model: &str,
+    d: &[f64],
+    k: [f64; 4],
+    tx: f64,
+) -> Vec<u8> {
+    let [fx, fy, cx, cy] = k;
+    let mut c = CdrWriter::new();
+    header(&mut c, stamp_ns);
+    c.u32(height as u32)
+        .u32(width as u32)
+        .string(model)
+        .f64s(d, true)
+        .f64s(&[fx, 0.0, cx, 0.0, fy, cy, 0.0, 0.0, 1.0], false)
+        .f64s(&[1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0], false)
+        .f64s(
+            &[fx, 0.0, cx, tx, 0.0, fy, cy, 0.0, 0.0, 0.0, 1.0, 0.0],
+            false,
+        );
+    // binning_x, binning_y, roi {x_offset, y_offset, height, width, do_rectify}
+    c.u32(0).u32(0).u32(0).u32(0).u32(0).u32(0).u8(0);
+    c.finish()
+}
+
+/// The `CameraInfo` of `camera` for images of `size`: `plumb_bob` or `equidistant`.
+pub fn camera_message(stamp_ns: u64, size: (usize, usize), camera: &Camera) -> Vec<u8> {
+    let p = camera.pinhole;
+    let k = [p.fx, p.fy, p.cx, p.cy];
+    let model = match camera.distortion {
+        Lens::RadialTangential(_) => "plumb_bob",
+        Lens::KannalaBrandt(_) => "equidistant",
+    };
+    let d = camera.distortion.coefficients();
+    camera_info_message(stamp_ns, size, model, &d, k, 0.0)
+}
+
+/// An MCAP file of CDR messages, one channel (and schema) per topic.
+pub struct BagWriter<W: Write + Seek> {
+    writer: mcap::Writer<W>,
+    channels: BTreeMap<String, u16>,
+    sequence: u32,
+}
+
+impl<W: Write + Seek> BagWriter<W> {
+    /// A bag written to `w`: zstd chunks when `chunked`, else one record after another.
+    pub fn new(w: W, chunked: bool) -> Result<Self, mcap::McapError> {
+        let writer = mcap::WriteOptions::new()
+            .profile("ros2")
+            .use_chunks(chunked)
+            .create(w)?;
+        Ok(Self {
+            writer,
+            channels: BTreeMap::new(),
+            sequence: 0,
+        })
+    }
+
+    /// Writes `data` (a CDR message of schema `schema`, e.g.
+    /// [`messages::IMAGE`](super::messages::IMAGE)) on `topic` at log time `stamp_ns`.
+    pub fn write(
+        &mut self,
+        topic: &str,
+        schema: &str,
+        stamp_ns: u64,
+        data: &[u8],
+    ) -> Result<(), mcap::McapError> {
+        let id = match self.channels.get(topic) {
+            Some(&id) => id,
+            None => {
+                let schema = self.writer.add_schema(schema, "ros2msg", b"")?;
+                let id = self
+                    .writer
+                    .add_channel(schema, topic, "cdr", &BTreeMap::new())?;
+                self.channels.insert(topic.to_owned(), id);
+                id
+            }
+        };
+        let header = mcap::records::MessageHeader {
+            channel_id: id,
+            sequence: self.sequence,
+            log_time: stamp_ns,
+            publish_time: stamp_ns,
+        };
+        self.sequence += 1;
+        self.writer.write_to_known_channel(&header, data)
+    }
+
+    /// Writes the summary and returns the output.
+    pub fn finish(mut self) -> Result<W, mcap::McapError> {
+        self.writer.finish()?;
+        Ok(self.writer.into_inner())
+    }
+}
