@@ -113,7 +113,7 @@ fn pattern(w: u32, h: u32, seed: u32) -> GrayImage {
 
 fn expect_bag_error(result: Result<Dataset, DatasetError>) -> BagError {
     match result {
-        Err(DatasetError::Bag(e)) => e,
+        Err(DatasetError::Bag(e)) => *e,
         other => panic!("expected a bag error, got {other:?}"),
     }
 }
@@ -504,14 +504,15 @@ fn corrupted_cdr_is_a_typed_error_for_that_frame_only() {
     assert_eq!(data.len(), 3);
     assert!(data.load(0).is_ok() && data.load(2).is_ok());
     match data.load(1) {
-        Err(DatasetError::Bag(BagError::Message {
-            topic,
-            index,
-            source: MessageError::Cdr(_),
-            ..
-        })) => {
-            assert_eq!((topic.as_str(), index), ("/cam/image", 1));
-        }
+        Err(DatasetError::Bag(e)) => match *e {
+            BagError::Message {
+                topic,
+                index,
+                source: MessageError::Cdr(_),
+                ..
+            } => assert_eq!((topic.as_str(), index), ("/cam/image", 1)),
+            other => panic!("expected a CDR error, got {other:?}"),
+        },
         other => panic!("expected a CDR error, got {other:?}"),
     }
 }

@@ -179,7 +179,7 @@ pub enum DatasetError {
     /// A ROS 2 bag cannot be opened or a message of a frame cannot be decoded.
     #[cfg(feature = "mcap")]
     #[error(transparent)]
-    Bag(#[from] bag::BagError),
+    Bag(Box<bag::BagError>),
     /// A depth map is not a single-channel 16-bit or 8-bit image or does not match the image size.
     #[error("frame {index}: {path}: {message}")]
     BadDepth {
@@ -190,6 +190,13 @@ pub enum DatasetError {
         /// What is wrong.
         message: String,
     },
+}
+
+#[cfg(feature = "mcap")]
+impl From<bag::BagError> for DatasetError {
+    fn from(e: bag::BagError) -> Self {
+        Self::Bag(Box::new(e))
+    }
 }
 
 /// Which dataset format a folder holds.

@@ -7,9 +7,11 @@ The cross-check of vofront's bag reader against bags it did not write itself:
   # --stereo adds image_1/ as /right/image_raw with its CameraInfo (P1, the baseline).
   $PY tests/data/make_ros2_bag.py kitti ../shared/data/kitti_06 /tmp/kitti_06.mcap [--stereo]
   # Image files as CompressedImage png (the files' bytes), a CameraInfo from --camera,
-  # frame i at i / fps seconds.
+  # frame i at i / fps seconds; --depth: 16-bit depth png files as CompressedImage png on
+  # /camera/depth/compressed (read with --depth-topic and --depth-scale).
   $PY tests/data/make_ros2_bag.py png /tmp/tum_pair.mcap img_prev.png img_curr.png \
-      --camera 517.3,516.5,318.6,255.3 --dist 0.2624,-0.9531,-0.0054,0.0026,1.1633 --fps 30
+      --camera 517.3,516.5,318.6,255.3 --dist 0.2624,-0.9531,-0.0054,0.0026,1.1633 --fps 30 \
+      --depth dep_prev.png dep_curr.png
 
 Messages are CDR little-endian as the writer chooses; chunks are zstd-compressed (its default).
 """
@@ -120,11 +122,15 @@ def png(args):
         w = Writer(f)
         s_img = w.register_msgdef("sensor_msgs/msg/CompressedImage", COMPRESSED)
         s_info = w.register_msgdef("sensor_msgs/msg/CameraInfo", CAMERA_INFO)
+        depths = args.depth or []
         for i, path in enumerate(args.images):
             ns = round(i / args.fps * 1e9)
             size = PilImage.open(path).size
             msg = {"header": header(ns), "format": "png", "data": pathlib.Path(path).read_bytes()}
             w.write_message("/camera/image_raw/compressed", s_img, msg, log_time=ns, publish_time=ns)
+            if i < len(depths):
+                msg = {"header": header(ns), "format": "png", "data": pathlib.Path(depths[i]).read_bytes()}
+                w.write_message("/camera/depth/compressed", s_img, msg, log_time=ns, publish_time=ns)
             info = camera_info(ns, size, fx, fy, cx, cy, dist)
             w.write_message("/camera/camera_info", s_info, info, log_time=ns, publish_time=ns)
         w.finish()
@@ -143,6 +149,7 @@ def main():
     p.add_argument("--camera", required=True, help="fx,fy,cx,cy")
     p.add_argument("--dist", help="k1,k2,p1,p2,k3 (plumb_bob)")
     p.add_argument("--fps", type=float, default=30.0)
+    p.add_argument("--depth", nargs="+", help="16-bit depth png files, one per image")
     args = ap.parse_args()
     kitti(args) if args.mode == "kitti" else png(args)
 

@@ -55,7 +55,7 @@ pub enum MessageError {
         /// The message's `format`.
         format: String,
         /// The decoder's error.
-        source: image::ImageError,
+        source: Box<image::ImageError>,
     },
     /// The calibration cannot be represented by a vofront camera.
     #[error("camera info: {0}")]
@@ -147,7 +147,10 @@ fn pixels(bytes: &[u8], compressed: bool, want_depth: bool) -> Result<Pixels, Me
         }
         return image::load_from_memory(data)
             .map(Pixels::Dynamic)
-            .map_err(|source| MessageError::Compressed { format, source });
+            .map_err(|source| MessageError::Compressed {
+                format,
+                source: Box::new(source),
+            });
     }
     let height = r.u32()? as usize;
     let width = r.u32()? as usize;

@@ -8,7 +8,7 @@
 //! `CompressedImage` png and jpeg).
 //!
 //! Topics ([`BagTopics`]): the image topic is the one `Image` or `CompressedImage` topic whose
-//! first message is not a depth encoding; the depth topic the one `16UC1`/`32FC1` topic (none
+//! first message is not a depth encoding (nor named as the depth or right topic); the depth topic the one `16UC1`/`32FC1` topic (none
 //! when there is none); the right topic only when named; the calibration the `CameraInfo`
 //! beside the image topic (`/ns/image_raw` -> `/ns/camera_info`), else the only one. Several
 //! candidates are an error that lists them ([`BagError::Ambiguous`]).
@@ -148,12 +148,13 @@ impl BagFrames {
     }
 
     fn error(&self, topic: &Topic, at: usize, source: MessageError) -> DatasetError {
-        DatasetError::Bag(BagError::Message {
+        BagError::Message {
             path: self.path.clone(),
             topic: topic.name.clone(),
             index: topic.messages[at].index,
             source,
-        })
+        }
+        .into()
     }
 
     /// Frame `index` (in range): grey image, depth in metres (`raw / depth_scale` for 16-bit),
@@ -293,7 +294,13 @@ pub fn open(
             .collect()
     };
     let images = of(&|t| t.schema != messages::CAMERA_INFO);
-    let intensity = of(&|t| t.schema != messages::CAMERA_INFO && !is_depth(t));
+    let named = |t: &Topic, n: &Option<String>| n.as_deref() == Some(t.name.as_str());
+    let intensity = of(&|t| {
+        t.schema != messages::CAMERA_INFO
+            && !is_depth(t)
+            && !named(t, &choice.depth)
+            && !named(t, &choice.right)
+    });
     let depths = of(&|t| is_depth(t));
     let infos = of(&|t| t.schema == messages::CAMERA_INFO);
     let image = topics::pick(
@@ -404,7 +411,7 @@ pub fn open(
                 source,
             };
             let bag_error = |source: vofront_core::camera::CameraError| {
-                DatasetError::Bag(BagError::Message {
+                DatasetError::from(BagError::Message {
                     path: path.to_path_buf(),
                     topic: info.clone().unwrap_or_default(),
                     index: 0,
