@@ -391,7 +391,8 @@ pub struct OdometryArgs {
     #[arg(long, value_name = "N")]
     pub features: Option<usize>,
     /// Trajectory output (camera-to-world, first frame at the origin), one line per tracked
-    /// frame, in `--out-format`.
+    /// frame, in `--out-format`; a name ending in `.mcap` writes a ROS 2 bag of
+    /// `geometry_msgs/msg/PoseStamped` on `/vofront/pose` (frame `world`) for Foxglove instead.
     #[arg(long, value_name = "TXT", default_value = "vofront-out/trajectory.txt")]
     pub out: PathBuf,
     /// Format of `--out`: tum (`t tx ty tz qx qy qz qw`) or kitti (12 numbers per line, no

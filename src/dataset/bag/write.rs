@@ -1,21 +1,43 @@
 //! Writing ROS 2 bags: the CDR of `sensor_msgs/msg/Image`, `CompressedImage` and `CameraInfo`
-//! ([`image_message`], [`compressed_image_message`], [`camera_info_message`]) and
-//! [`BagWriter`], an MCAP file of such messages (zstd chunks, one channel per topic), as
-//! rosbag2 writes them. Used by the tests and examples that make bags from rendered
-//! sequences.
+//! ([`image_message`], [`compressed_image_message`], [`camera_info_message`]) and of
+//! `geometry_msgs/msg/PoseStamped` ([`pose_stamped_message`]); [`BagWriter`], an MCAP file of
+//! such messages (one channel per topic), as rosbag2 writes them; [`PoseBagSink`], a
+//! trajectory streamed into a bag for Foxglove (`vofront odometry --out traj.mcap`).
 
 use std::collections::BTreeMap;
-use std::io::{Seek, Write};
+use std::io::{self, Seek, Write};
 
+use nalgebra::Isometry3;
 use vofront_core::camera::{Camera, Lens};
 
 use super::cdr::CdrWriter;
+use crate::odometry::run::FrameRecord;
+use crate::odometry::sink::FrameSink;
+
+/// Schema name of a stamped pose.
+pub const POSE_STAMPED: &str = "geometry_msgs/msg/PoseStamped";
+
+/// A `std_msgs/msg/Header` at `stamp_ns` (nanoseconds) in frame `frame_id`.
+fn header_in(w: &mut CdrWriter, stamp_ns: u64, frame_id: &str) {
+    w.i32((stamp_ns / 1_000_000_000) as i32)
+        .u32((stamp_ns % 1_000_000_000) as u32)
+        .string(frame_id);
+}
 
 /// A `std_msgs/msg/Header` at `stamp_ns` (nanoseconds) with `frame_id` `camera`.
 fn header(w: &mut CdrWriter, stamp_ns: u64) {
-    w.i32((stamp_ns / 1_000_000_000) as i32)
-        .u32((stamp_ns % 1_000_000_000) as u32)
-        .string("camera");
+    header_in(w, stamp_ns, "camera");
+}
+
+/// A `geometry_msgs/msg/PoseStamped` of `pose` in `frame_id`: position `x y z`, then the
+/// orientation quaternion `x y z w`.
+pub fn pose_stamped_message(stamp_ns: u64, frame_id: &str, pose: &Isometry3<f64>) -> Vec<u8> {
+    let t = pose.translation.vector;
+    let q = pose.rotation.quaternion().coords;
+    let mut c = CdrWriter::new();
+    header_in(&mut c, stamp_ns, frame_id);
+    c.f64s(&[t.x, t.y, t.z, q.x, q.y, q.z, q.w], false);
+    c.finish()
 }
 
 /// The geometry of an [`image_message`].
@@ -161,5 +183,44 @@ impl<W: Write + Seek> BagWriter<W> {
     pub fn finish(mut self) -> Result<W, mcap::McapError> {
         self.writer.finish()?;
         Ok(self.writer.into_inner())
+    }
+}
+
+/// Streams each tracked frame's camera pose `T_wc` ([`FrameRecord::trajectory_pose`]) as a
+/// `geometry_msgs/msg/PoseStamped` in frame `world` on the topic `/vofront/pose` of a bag
+/// without chunks, flushed per frame (a run cut short leaves a bag a streaming reader reads to
+/// its last pose); [`PoseBagSink::finish`] writes the summary.
+pub struct PoseBagSink<W: Write + Seek> {
+    bag: BagWriter<W>,
+}
+
+impl<W: Write + Seek> PoseBagSink<W> {
+    /// The topic of the poses.
+    pub const TOPIC: &'static str = "/vofront/pose";
+
+    /// A sink writing into `w`.
+    pub fn new(w: W) -> io::Result<Self> {
+        Ok(Self {
+            bag: BagWriter::new(w, false).map_err(io::Error::other)?,
+        })
+    }
+
+    /// Writes the summary and returns the output.
+    pub fn finish(self) -> io::Result<W> {
+        self.bag.finish().map_err(io::Error::other)
+    }
+}
+
+impl<W: Write + Seek> FrameSink for PoseBagSink<W> {
+    fn frame(&mut self, record: &FrameRecord) -> io::Result<()> {
+        if let Some(pose) = record.trajectory_pose() {
+            let ns = (record.timestamp.max(0.0) * 1e9).round() as u64;
+            let msg = pose_stamped_message(ns, "world", &pose);
+            self.bag
+                .write(Self::TOPIC, POSE_STAMPED, ns, &msg)
+                .and_then(|()| self.bag.writer.flush())
+                .map_err(io::Error::other)?;
+        }
+        Ok(())
     }
 }
