@@ -17,6 +17,38 @@ use crate::odometry::sink::FrameSink;
 /// Schema name of a stamped pose.
 pub const POSE_STAMPED: &str = "geometry_msgs/msg/PoseStamped";
 
+/// The `ros2msg` definitions the header types need (after a message's own fields).
+const HEADER_DEFINITION: &str = "
+================================================================================
+MSG: std_msgs/Header
+builtin_interfaces/Time stamp
+string frame_id
+================================================================================
+MSG: builtin_interfaces/Time
+int32 sec
+uint32 nanosec
+";
+
+/// The `ros2msg` schema text of a message type this module writes (the type's fields, then
+/// each type it uses), which viewers such as Foxglove need to decode the CDR; empty for
+/// another name.
+pub fn schema_definition(name: &str) -> String {
+    use super::messages::{CAMERA_INFO, COMPRESSED_IMAGE, IMAGE};
+    let own = match name {
+        IMAGE => "std_msgs/Header header\nuint32 height\nuint32 width\nstring encoding\nuint8 is_bigendian\nuint32 step\nuint8[] data\n",
+        COMPRESSED_IMAGE => "std_msgs/Header header\nstring format\nuint8[] data\n",
+        CAMERA_INFO => "std_msgs/Header header\nuint32 height\nuint32 width\nstring distortion_model\nfloat64[] d\nfloat64[9] k\nfloat64[9] r\nfloat64[12] p\nuint32 binning_x\nuint32 binning_y\nsensor_msgs/RegionOfInterest roi\n",
+        POSE_STAMPED => "std_msgs/Header header\ngeometry_msgs/Pose pose\n",
+        _ => return String::new(),
+    };
+    let used = match name {
+        CAMERA_INFO => "================================================================================\nMSG: sensor_msgs/RegionOfInterest\nuint32 x_offset\nuint32 y_offset\nuint32 height\nuint32 width\nbool do_rectify\n",
+        POSE_STAMPED => "================================================================================\nMSG: geometry_msgs/Pose\nPoint position\nQuaternion orientation\n================================================================================\nMSG: geometry_msgs/Point\nfloat64 x\nfloat64 y\nfloat64 z\n================================================================================\nMSG: geometry_msgs/Quaternion\nfloat64 x\nfloat64 y\nfloat64 z\nfloat64 w\n",
+        _ => "",
+    };
+    format!("{own}{HEADER_DEFINITION}{used}")
+}
+
 /// A `std_msgs/msg/Header` at `stamp_ns` (nanoseconds) in frame `frame_id`.
 fn header_in(w: &mut CdrWriter, stamp_ns: u64, frame_id: &str) {
     w.i32((stamp_ns / 1_000_000_000) as i32)
@@ -150,7 +182,8 @@ impl<W: Write + Seek> BagWriter<W> {
     }
 
     /// Writes `data` (a CDR message of schema `schema`, e.g.
-    /// [`messages::IMAGE`](super::messages::IMAGE)) on `topic` at log time `stamp_ns`.
+    /// [`messages::IMAGE`](super::messages::IMAGE), whose [`schema_definition`] goes with the
+    /// channel) on `topic` at log time `stamp_ns`.
     pub fn write(
         &mut self,
         topic: &str,
@@ -161,7 +194,8 @@ impl<W: Write + Seek> BagWriter<W> {
         let id = match self.channels.get(topic) {
             Some(&id) => id,
             None => {
-                let schema = self.writer.add_schema(schema, "ros2msg", b"")?;
+                let text = schema_definition(schema);
+                let schema = self.writer.add_schema(schema, "ros2msg", text.as_bytes())?;
                 let id = self
                     .writer
                     .add_channel(schema, topic, "cdr", &BTreeMap::new())?;
