@@ -307,6 +307,7 @@ pub struct Dataset {
     /// exactly when `camera` is `None`. Its left camera is [`Dataset::camera`].
     pub rig: Option<Rig>,
     /// A ROS 2 bag's messages behind the frames (feature `mcap`); nothing for a folder.
+    #[cfg_attr(not(feature = "mcap"), allow(dead_code))]
     pub(crate) bag: BagHandle,
 }
 
