@@ -108,6 +108,7 @@ pub fn open(root: &Path, config: &DatasetConfig) -> Result<Dataset, DatasetError
         ground_truth_tolerance: config.ground_truth_tolerance,
         camera_in_body: cam0.t_bs,
         rig,
+        bag: Default::default(),
     })
 }
 
@@ -304,6 +305,7 @@ mod tests {
             ground_truth: Some(Trajectory::new(vec![(5.0, t_wb)])),
             ground_truth_tolerance: 0.02,
             camera_in_body: Some(t_bc),
+            bag: Default::default(),
             rig: None,
         };
         let cam = data.camera_ground_truth().unwrap();

@@ -109,6 +109,7 @@ pub fn open(root: &Path, config: &DatasetConfig) -> Result<Dataset, DatasetError
         ground_truth_tolerance: config.ground_truth_tolerance,
         camera_in_body: None,
         rig,
+        bag: Default::default(),
     })
 }
 

@@ -40,6 +40,8 @@
 //! std::fs::remove_dir_all(&dir).unwrap();
 //! ```
 
+#[cfg(feature = "mcap")]
+pub mod bag;
 pub mod euroc;
 mod frame;
 pub mod images;
@@ -174,6 +176,10 @@ pub enum DatasetError {
         /// What is wrong.
         source: FrameError,
     },
+    /// A ROS 2 bag cannot be opened or a message of a frame cannot be decoded.
+    #[cfg(feature = "mcap")]
+    #[error(transparent)]
+    Bag(Box<bag::BagError>),
     /// A depth map is not a single-channel 16-bit or 8-bit image or does not match the image size.
     #[error("frame {index}: {path}: {message}")]
     BadDepth {
@@ -184,6 +190,13 @@ pub enum DatasetError {
         /// What is wrong.
         message: String,
     },
+}
+
+#[cfg(feature = "mcap")]
+impl From<bag::BagError> for DatasetError {
+    fn from(e: bag::BagError) -> Self {
+        Self::Bag(Box::new(e))
+    }
 }
 
 /// Which dataset format a folder holds.
@@ -197,6 +210,8 @@ pub enum DatasetKind {
     Euroc,
     /// A plain folder of images ([`images`]).
     Images,
+    /// A ROS 2 bag (`.mcap`, feature `mcap`).
+    Bag,
 }
 
 /// Where [`Dataset::camera`] came from.
@@ -209,6 +224,8 @@ pub enum CameraSource {
     /// The TUM camera named in a file of the folder (the `# file: 'rgbd_dataset_freiburgN_...'`
     /// header of `rgb.txt`, `depth.txt` or `groundtruth.txt`).
     FileHeader(PathBuf),
+    /// The first message of a ROS 2 bag's `sensor_msgs/msg/CameraInfo` topic.
+    Topic(String),
 }
 
 impl std::fmt::Display for CameraSource {
@@ -217,6 +234,7 @@ impl std::fmt::Display for CameraSource {
             CameraSource::CalibrationFile(p) => write!(f, "calibration file {}", p.display()),
             CameraSource::FolderName(name) => write!(f, "TUM {name} preset (from the folder name)"),
             CameraSource::FileHeader(p) => write!(f, "TUM preset named in {}", p.display()),
+            CameraSource::Topic(t) => write!(f, "camera info topic {t}"),
         }
     }
 }
@@ -288,7 +306,17 @@ pub struct Dataset {
     /// `image_1/` + `P1`, EuRoC `cam1/`), else mono around [`Dataset::camera`]; `None`
     /// exactly when `camera` is `None`. Its left camera is [`Dataset::camera`].
     pub rig: Option<Rig>,
+    /// A ROS 2 bag's messages behind the frames (feature `mcap`); nothing for a folder.
+    #[cfg_attr(not(feature = "mcap"), allow(dead_code))]
+    pub(crate) bag: BagHandle,
 }
+
+/// The messages of a bag dataset ([`bag::BagFrames`]), none for a folder.
+#[cfg(feature = "mcap")]
+pub(crate) type BagHandle = Option<std::sync::Arc<bag::BagFrames>>;
+/// Without the `mcap` feature there are no bags.
+#[cfg(not(feature = "mcap"))]
+pub(crate) type BagHandle = ();
 
 impl Dataset {
     /// Opens `path` with [`DatasetConfig::default`], detecting the format.
@@ -299,6 +327,14 @@ impl Dataset {
     /// Opens `path`, detecting the format from its layout (see the module documentation).
     pub fn open_with(path: impl AsRef<Path>, config: &DatasetConfig) -> Result<Self, DatasetError> {
         let root = path.as_ref();
+        #[cfg(feature = "mcap")]
+        if root.is_file()
+            && root
+                .extension()
+                .is_some_and(|e| e.eq_ignore_ascii_case("mcap"))
+        {
+            return Self::open_bag(root, config, &bag::BagTopics::default());
+        }
         let mut entries = std::fs::read_dir(root).map_err(|_| DatasetError::Empty(root.into()))?;
         if entries.next().is_none() {
             return Err(DatasetError::Empty(root.into()));
@@ -320,6 +356,31 @@ impl Dataset {
         Ok(dataset)
     }
 
+    /// Opens a ROS 2 bag (`.mcap`) with the topics of `topics` (see [`bag`]).
+    #[cfg(feature = "mcap")]
+    pub fn open_bag(
+        path: impl AsRef<Path>,
+        config: &DatasetConfig,
+        topics: &bag::BagTopics,
+    ) -> Result<Self, DatasetError> {
+        let path = path.as_ref();
+        let dataset = bag::open(path, config, topics)?;
+        if dataset.frames.is_empty() {
+            return Err(DatasetError::NoFrames(path.into()));
+        }
+        Ok(dataset)
+    }
+
+    /// What opening the dataset met and worked around (a bag cut off early, images without
+    /// a depth or right partner left out); empty for a folder.
+    pub fn notes(&self) -> Vec<String> {
+        #[cfg(feature = "mcap")]
+        if let Some(bag) = &self.bag {
+            return bag.notes().to_vec();
+        }
+        Vec::new()
+    }
+
     /// Number of frames.
     pub fn len(&self) -> usize {
         self.frames.len()
@@ -336,6 +397,15 @@ impl Dataset {
     /// (see [`Dataset::load_stereo`]).
     pub fn load(&self, index: usize) -> Result<Frame, DatasetError> {
         let info = self.info(index)?;
+        #[cfg(feature = "mcap")]
+        if let Some(bag) = &self.bag {
+            return bag.load(
+                index,
+                info.timestamp,
+                self.depth_scale.unwrap_or(1000.0),
+                false,
+            );
+        }
         let image = Image::from_gray_owned(open_image(index, &info.image)?.into_luma8());
         let depth = match &info.depth {
             Some(path) => Some(self.load_depth(index, path)?),
@@ -356,6 +426,16 @@ impl Dataset {
     /// [`DatasetError::Image`] when it cannot be read, [`DatasetError::Frame`] when its size
     /// differs.
     pub fn load_stereo(&self, index: usize) -> Result<Frame, DatasetError> {
+        #[cfg(feature = "mcap")]
+        if let Some(bag) = &self.bag {
+            let info = self.info(index)?;
+            return bag.load(
+                index,
+                info.timestamp,
+                self.depth_scale.unwrap_or(1000.0),
+                true,
+            );
+        }
         let path = self
             .info(index)?
             .right

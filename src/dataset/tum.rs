@@ -61,6 +61,7 @@ pub fn open(root: &Path, config: &DatasetConfig) -> Result<Dataset, DatasetError
         root: root.to_path_buf(),
         frames,
         rig: super::mono_rig(camera, None, root)?,
+        bag: Default::default(),
         camera,
         camera_source,
         depth_scale: depth_list.is_file().then_some(TUM_DEPTH_SCALE),

@@ -365,7 +365,8 @@ Exit codes: 0 done, 1 failed, 2 bad command line, 3 tracking lost for good, 130/
 )]
 pub struct OdometryArgs {
     /// Dataset folder: TUM RGB-D (rgb.txt), KITTI odometry (image_0/, times.txt), EuRoC (mav0/)
-    /// or a plain folder of images (timed by `--fps` or by timestamp file names).
+    /// or a plain folder of images (timed by `--fps` or by timestamp file names); or a ROS 2
+    /// bag (`.mcap`, see the `--*-topic` flags).
     pub dataset: PathBuf,
     /// Tracker (`feature`, the former name of `mono`, is still accepted).
     #[arg(long, value_enum, default_value_t = TrackerKind::Direct)]
@@ -382,12 +383,16 @@ pub struct OdometryArgs {
     /// from the file names].
     #[arg(long, value_name = "HZ", allow_negative_numbers = true)]
     pub fps: Option<f64>,
+    /// The bag topics of `dataset` when it is a ROS 2 bag (`.mcap`).
+    #[command(flatten)]
+    pub topics: TopicArgs,
     /// ORB feature budget per frame of the feature trackers [default: the tracker's, 1000
     /// for feature-rgbd].
     #[arg(long, value_name = "N")]
     pub features: Option<usize>,
     /// Trajectory output (camera-to-world, first frame at the origin), one line per tracked
-    /// frame, in `--out-format`.
+    /// frame, in `--out-format`; a name ending in `.mcap` writes a ROS 2 bag of
+    /// `geometry_msgs/msg/PoseStamped` on `/vofront/pose` (frame `world`) for Foxglove instead.
     #[arg(long, value_name = "TXT", default_value = "vofront-out/trajectory.txt")]
     pub out: PathBuf,
     /// Format of `--out`: tum (`t tx ty tz qx qy qz qw`) or kitti (12 numbers per line, no
@@ -412,4 +417,43 @@ pub struct OdometryArgs {
     /// Print one JSON summary object instead of text.
     #[arg(long)]
     pub json: bool,
+}
+
+/// The topics of a ROS 2 bag (`.mcap`); each is picked automatically when the bag has exactly
+/// one candidate (the right topic only when named).
+#[derive(Debug, Clone, Default, Args)]
+pub struct TopicArgs {
+    /// `sensor_msgs/msg/Image` or `CompressedImage` topic of the (left) images.
+    #[arg(long, value_name = "TOPIC")]
+    pub image_topic: Option<String>,
+    /// Topic of the right images of a rectified stereo pair (paired by header stamp).
+    #[arg(long, value_name = "TOPIC")]
+    pub right_topic: Option<String>,
+    /// `16UC1` (millimetres, or `--depth-scale` units) or `32FC1` (metres) depth topic.
+    #[arg(long, value_name = "TOPIC")]
+    pub depth_topic: Option<String>,
+    /// `sensor_msgs/msg/CameraInfo` topic: the camera unless camera flags are given
+    /// [default: the one beside the image topic, else the only one].
+    #[arg(long, value_name = "TOPIC")]
+    pub camera_info_topic: Option<String>,
+}
+
+impl TopicArgs {
+    /// The topics as the bag reader takes them.
+    pub fn topics(&self) -> vofront::dataset::bag::BagTopics {
+        vofront::dataset::bag::BagTopics {
+            image: self.image_topic.clone(),
+            right: self.right_topic.clone(),
+            depth: self.depth_topic.clone(),
+            camera_info: self.camera_info_topic.clone(),
+        }
+    }
+
+    /// True when a topic flag was given.
+    pub fn is_given(&self) -> bool {
+        self.image_topic.is_some()
+            || self.right_topic.is_some()
+            || self.depth_topic.is_some()
+            || self.camera_info_topic.is_some()
+    }
 }

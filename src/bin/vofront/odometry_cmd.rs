@@ -15,6 +15,7 @@ use std::sync::Arc;
 
 use indicatif::{ProgressBar, ProgressStyle};
 use vofront::core::{Camera, Lens};
+use vofront::dataset::bag::write::PoseBagSink;
 use vofront::dataset::{Dataset, DatasetConfig};
 use vofront::eval::{plot::write_plot, AteResult};
 use vofront::odometry::graph::G2oSink;
@@ -218,7 +219,15 @@ pub fn run(args: &OdometryArgs) -> Result<u8, String> {
         fps: args.fps,
         ..DatasetConfig::default()
     };
-    let mut dataset = Dataset::open_with(&args.dataset, &config).map_err(|e| e.to_string())?;
+    let mut dataset = if args.dataset.is_file() || args.topics.is_given() {
+        Dataset::open_bag(&args.dataset, &config, &args.topics.topics())
+    } else {
+        Dataset::open_with(&args.dataset, &config)
+    }
+    .map_err(|e| e.to_string())?;
+    for note in dataset.notes() {
+        eprintln!("note: {note}");
+    }
     if let Some(scale) = args.depth_scale {
         if !(scale.is_finite() && scale > 0.0) {
             return Err(format!("--depth-scale {scale}: must be a positive number"));
@@ -235,7 +244,12 @@ pub fn run(args: &OdometryArgs) -> Result<u8, String> {
         features: args.features,
     };
     let mut tracker = session.tracker(&options).map_err(|e| e.to_string())?;
+    let mcap_out = args
+        .out
+        .extension()
+        .is_some_and(|e| e.eq_ignore_ascii_case("mcap"));
     let trajectory = match args.out_format {
+        _ if mcap_out => (None, None),
         OutFormat::Tum => (Some(TumSink::new(create_output(&args.out)?)), None),
         OutFormat::Kitti => {
             let times = create_output(&kitti_times_path(&args.out))?;
@@ -276,10 +290,21 @@ pub fn run(args: &OdometryArgs) -> Result<u8, String> {
         }
         Ok(())
     };
-    let mut sink = (trajectory, (metrics, (graph, progress)));
+    let pose_bag = mcap_out
+        .then(|| create_output(&args.out))
+        .transpose()?
+        .map(PoseBagSink::new)
+        .transpose()
+        .map_err(|e| format!("{}: cannot write: {e}", args.out.display()))?;
+    let mut sink = (trajectory, (metrics, (graph, (pose_bag, progress))));
     let out = session.run(tracker.as_mut(), &control, &mut sink);
     if let Some(bar) = &bar {
         bar.finish_and_clear();
+    }
+    let (_, (_, (_, (pose_bag, _)))) = sink;
+    if let Some(bag) = pose_bag {
+        bag.finish()
+            .map_err(|e| format!("{}: cannot write: {e}", args.out.display()))?;
     }
     let out = out.map_err(|e| e.to_string())?;
     if args.json {
