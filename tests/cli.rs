@@ -630,4 +630,72 @@ fn odometry_out_mcap_writes_the_trajectory_as_pose_stamped_messages() {
             "{p:?} vs {expected:?}"
         );
     }
+    std::fs::remove_dir_all(&dir).ok();
+}
+
+/// `odometry --rerun FILE` logs every frame to a Rerun recording (read back with Rerun's
+/// decoder: one image per frame); a recording that cannot be written is one line and exit
+/// code 1 before any frame is tracked; `--rerun` and `--rerun-connect` exclude each other.
+#[test]
+fn odometry_logs_to_a_rerun_recording_and_refuses_an_unwritable_one() {
+    use re_log_encoding::DecoderApp;
+    use rerun::log::{Chunk, LogMsg};
+    use vofront_fixtures::scene::room_trajectory;
+    use vofront_fixtures::tum::write_tum_sequence;
+    let dir = temp_dir("rerun");
+    write_tum_sequence(
+        &dir.join("seq"),
+        &Scene::box_room(2),
+        &default_camera(),
+        (640, 480),
+        &room_trajectory(5),
+    )
+    .unwrap();
+    let common = [
+        "odometry",
+        "seq",
+        "--method",
+        "feature-rgbd",
+        "--camera",
+        "tum-ros",
+        "--out",
+        "t.txt",
+        "--metrics",
+        "m.csv",
+    ];
+    let out = vofront(&[&common[..], &["--rerun", "rec/run.rrd"]].concat(), &dir);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let file = std::io::BufReader::new(std::fs::File::open(dir.join("rec/run.rrd")).unwrap());
+    let mut images = 0;
+    for msg in DecoderApp::decode_lazy(file) {
+        if let LogMsg::ArrowMsg(_, arrow) = msg.expect("a well-formed message") {
+            let chunk = Chunk::from_arrow_msg(&arrow).unwrap();
+            if !chunk.is_static() && chunk.entity_path().to_string() == "/world/camera/image" {
+                images += chunk.num_rows();
+            }
+        }
+    }
+    assert_eq!(images, 5);
+
+    std::fs::write(dir.join("blocker"), "a file").unwrap();
+    let bad = vofront(
+        &[&common[..], &["--rerun", "blocker/run.rrd"]].concat(),
+        &dir,
+    );
+    assert_eq!(bad.status.code(), Some(1));
+    let err = String::from_utf8_lossy(&bad.stderr);
+    assert!(
+        err.contains("blocker/run.rrd") && err.trim().lines().count() == 1,
+        "{err}"
+    );
+    let both = vofront(
+        &[&common[..], &["--rerun", "r.rrd", "--rerun-connect"]].concat(),
+        &dir,
+    );
+    assert_eq!(both.status.code(), Some(2));
+    std::fs::remove_dir_all(&dir).ok();
 }

@@ -40,6 +40,8 @@ pub mod mono;
 pub mod motion;
 pub mod observe;
 pub mod registry;
+#[cfg(feature = "rerun")]
+pub mod rerun_log;
 pub mod run;
 pub mod sink;
 pub mod stereo;

@@ -5,7 +5,8 @@
 //!
 //! Trackers keep their details only when asked ([`Tracker::keep_details`](super::Tracker)),
 //! so a run without an observer does no extra work. The observer depends on nothing but these
-//! types: a viewer's sink lives outside the trackers.
+//! types: a viewer's sink (the `rerun` feature's `odometry::rerun_log`) lives outside the
+//! trackers.
 
 use std::io;
 

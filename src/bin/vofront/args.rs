@@ -6,6 +6,7 @@ use clap::builder::{PossibleValue, PossibleValuesParser, TypedValueParser};
 use clap::{Args, Parser, Subcommand, ValueEnum};
 use vofront::core::camera::{Camera, Distortion, KannalaBrandt, Lens, Pinhole};
 use vofront::odometry::registry::{default_camera, TrackerKind};
+use vofront::odometry::rerun_log::DEFAULT_VIEWER;
 use vofront::presets::{camera_preset, principal_point_warning, PRESETS};
 use vofront::trajectory::TrajectoryFormat;
 use vofront::two_view::Method;
@@ -417,6 +418,20 @@ pub struct OdometryArgs {
     /// Print one JSON summary object instead of text.
     #[arg(long)]
     pub json: bool,
+    /// Log every frame to a Rerun recording (open it with `rerun FILE.rrd`): the image, the
+    /// keypoints (inliers green, outliers red), the camera with its pose and trajectory, the
+    /// ground truth when known, the local map's points, and per-frame inliers, residual,
+    /// verdict and time.
+    #[arg(long, value_name = "RRD", conflicts_with = "rerun_connect")]
+    pub rerun: Option<PathBuf>,
+    /// Stream the same to a running Rerun viewer at ADDR.
+    #[arg(
+        long,
+        value_name = "ADDR",
+        num_args = 0..=1,
+        default_missing_value = DEFAULT_VIEWER
+    )]
+    pub rerun_connect: Option<String>,
 }
 
 /// The topics of a ROS 2 bag (`.mcap`); each is picked automatically when the bag has exactly

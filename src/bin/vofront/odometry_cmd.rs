@@ -20,6 +20,7 @@ use vofront::dataset::{Dataset, DatasetConfig};
 use vofront::eval::{plot::write_plot, AteResult};
 use vofront::odometry::graph::G2oSink;
 use vofront::odometry::registry::{Evaluation, Session, TrackerOptions};
+use vofront::odometry::rerun_log::RerunSink;
 use vofront::odometry::run::{
     run as run_tracker, FrameRecord, MetricsCsvSink, RunControl, RunOutput, RunSummary, TumSink,
 };
@@ -191,6 +192,21 @@ fn create_output(path: &Path) -> Result<BufWriter<File>, String> {
     File::create(path).map(BufWriter::new).map_err(fail)
 }
 
+/// The Rerun sink asked for by `--rerun FILE` or `--rerun-connect ADDR` (the file created
+/// now), with the dataset's ground truth when it has one.
+fn rerun_sink(args: &OdometryArgs, session: &Session) -> Result<Option<RerunSink>, String> {
+    let sink = match (&args.rerun, &args.rerun_connect) {
+        (Some(path), _) => RerunSink::save(path, session.camera),
+        (None, Some(address)) => RerunSink::connect(address, session.camera),
+        (None, None) => return Ok(None),
+    }
+    .map_err(|e| e.to_string())?;
+    Ok(Some(match session.dataset.camera_ground_truth() {
+        Some(gt) => sink.with_ground_truth(gt),
+        None => sink,
+    }))
+}
+
 /// The stop flag raised by the first SIGINT or SIGTERM, and the exit code it asks for
 /// (0 until a signal arrives). A second signal exits at once with that signal's code.
 fn install_signal_handlers() -> Result<(Arc<AtomicBool>, Arc<AtomicUsize>), String> {
@@ -268,6 +284,13 @@ pub fn run(args: &OdometryArgs) -> Result<u8, String> {
         create_output(path)?;
         std::fs::remove_file(path).map_err(|e| format!("{}: {e}", path.display()))?;
     }
+    if let Some(path) = &args.rerun {
+        if let Some(parent) = path.parent().filter(|p| !p.as_os_str().is_empty()) {
+            std::fs::create_dir_all(parent)
+                .map_err(|e| format!("{}: cannot write: {e}", path.display()))?;
+        }
+    }
+    let mut viewer = rerun_sink(args, &session)?;
     if !args.json {
         outln!(
             "camera: {} ({})",
@@ -297,7 +320,10 @@ pub fn run(args: &OdometryArgs) -> Result<u8, String> {
         .transpose()
         .map_err(|e| format!("{}: cannot write: {e}", args.out.display()))?;
     let mut sink = (trajectory, (metrics, (graph, (pose_bag, progress))));
-    let out = session.run(tracker.as_mut(), &control, &mut sink);
+    let out = match viewer.as_mut() {
+        Some(viewer) => session.run_observed(tracker.as_mut(), &control, &mut sink, viewer),
+        None => session.run(tracker.as_mut(), &control, &mut sink),
+    };
     if let Some(bar) = &bar {
         bar.finish_and_clear();
     }
@@ -305,6 +331,11 @@ pub fn run(args: &OdometryArgs) -> Result<u8, String> {
     if let Some(bag) = pose_bag {
         bag.finish()
             .map_err(|e| format!("{}: cannot write: {e}", args.out.display()))?;
+    }
+    if let Some(viewer) = viewer {
+        viewer
+            .finish()
+            .map_err(|e| format!("Rerun recording: {e}"))?;
     }
     let out = out.map_err(|e| e.to_string())?;
     if args.json {
