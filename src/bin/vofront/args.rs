@@ -33,7 +33,7 @@ pub enum Command {
     Relpose(RelposeArgs),
     /// Track a whole sequence (TUM RGB-D, KITTI or EuRoC folder) into a TUM or KITTI trajectory.
     /// Exit code 3: tracking was lost for good (partial results are still written).
-    Odometry(OdometryArgs),
+    Odometry(Box<OdometryArgs>),
     /// Absolute and relative trajectory errors of an estimate against ground truth (TUM, KITTI
     /// or EuRoC files, as evo reads them).
     Eval(EvalArgs),
