@@ -145,7 +145,6 @@ fn a_logged_drive_reads_back_with_every_entity_and_frame() {
         &mut observer,
     )
     .expect("run");
-    drop(observer);
     sink.finish().expect("finish");
     assert_eq!(out.summary.frames, FRAMES);
     assert_eq!(
