@@ -268,6 +268,7 @@ fn main() {
             camera,
             method: Method::All,
             features: 2000,
+            stereo: None,
         });
         let truth = p2.inverse() * p1;
         let name = format!("tum {case}{}", if reversed { " back" } else { "" });
@@ -302,6 +303,7 @@ fn main() {
                     camera,
                     method: Method::Feature,
                     features: 2000,
+                    stereo: None,
                 });
                 let name = format!("{clip} {k}-{}", k + step);
                 match &o.feature {

@@ -16,6 +16,7 @@
 //! `vofront = { version = "0.1", default-features = false }`.
 #![warn(missing_docs)]
 
+pub mod compare;
 pub mod dataset;
 pub mod draw;
 pub mod error;

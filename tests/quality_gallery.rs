@@ -23,6 +23,7 @@ fn run(img1: Image<u8>, img2: Image<u8>, depth1: Option<Image<f32>>) -> Outcome 
         camera: default_camera(),
         method: Method::All,
         features: 1000,
+        stereo: None,
     })
 }
 

@@ -1,8 +1,10 @@
 //! The `rerun` feature: a rendered street drive (a KITTI folder with ground truth) tracked by
 //! the monocular tracker and logged to an `.rrd` file, read back with Rerun's own decoder:
 //! every entity of `odometry::rerun_log` is there, one image per frame on the `frame`
-//! timeline, keypoints and map points with each frame; a path that cannot be written is an
-//! error before any frame is tracked.
+//! timeline, keypoints and map points with each frame; the stereo, direct-stereo and direct
+//! trackers' details (left keypoints by role; keyframe pixels by photometric residual) on
+//! rendered stereo and RGB-D sequences; a path that cannot be written is an error before any
+//! frame is tracked.
 
 use std::collections::BTreeMap;
 use std::fs::File;
@@ -15,8 +17,7 @@ use vofront::dataset::Dataset;
 use vofront::fixtures::driving::{DrivingSequence, FRAME_RATE};
 use vofront::fixtures::image2d::to_gray8;
 use vofront::odometry::mono::{MonoConfig, MonoTracker};
-use vofront::odometry::observe::FrameObserver;
-use vofront::odometry::observe::Observed;
+use vofront::odometry::observe::{FrameDetails, FrameObserver, Observed};
 use vofront::odometry::rerun_log::{self as entity, RerunLogError, RerunSink};
 use vofront::odometry::run::{run_observed, RunControl};
 use vofront::odometry::TrackStatus;
@@ -200,4 +201,161 @@ fn an_unwritable_recording_is_an_error_naming_the_path() {
     };
     assert!(matches!(err, RerunLogError::File { .. }), "{err:?}");
     assert!(err.to_string().contains("out.rrd"), "{err}");
+}
+
+/// Runs `tracker` over `dataset` with a [`RerunSink`] writing `rrd`, checking each frame's
+/// details with `check` (the frame observed, its details); returns the recording read back.
+fn observe_into(
+    dataset: &Dataset,
+    tracker: &mut dyn vofront::odometry::Tracker,
+    rrd: &Path,
+    mut check: impl FnMut(&Observed<'_>, &FrameDetails),
+) -> Recording {
+    let camera = dataset
+        .camera
+        .unwrap_or_else(vofront_fixtures::scene::default_camera);
+    let mut sink = RerunSink::save(rrd, camera).expect("sink");
+    let mut observer = |o: &Observed<'_>| {
+        let details = o
+            .details
+            .expect("every tracker keeps details when observed");
+        assert_eq!(details.keypoints.len(), details.roles.len());
+        check(o, details);
+        sink.frame(o)
+    };
+    run_observed(
+        dataset,
+        tracker,
+        &RunControl::default(),
+        &mut |_: &_| Ok(()),
+        &mut observer,
+    )
+    .expect("run");
+    sink.finish().expect("finish");
+    read_rrd(rrd)
+}
+
+/// The keypoints and map points of every frame of `recording` (`frames` of them).
+fn assert_details_logged(recording: &Recording, frames: usize, what: &str) {
+    let every_frame: Vec<i64> = (0..frames as i64).collect();
+    for path in [entity::KEYPOINTS, entity::MAP_POINTS] {
+        let mut logged = recording.frames.get(path).cloned().unwrap_or_default();
+        logged.sort_unstable();
+        assert_eq!(logged, every_frame, "{what}: {path}");
+    }
+}
+
+/// A direct tracker's details after a frame aligned to its keyframe (`o`): the keyframe's
+/// pixels warped into the frame with the residuals of the aligned pose (inliers in the share
+/// the aligner found), inside the image, and the keyframe's points.
+fn check_photometric(o: &Observed<'_>, details: &FrameDetails, size: (usize, usize), what: &str) {
+    let n = details.keypoints.len();
+    assert!(n >= 100, "{what}: {n} pixels");
+    assert_eq!(details.residuals.len(), n, "{what}");
+    assert!(details.residual_limit > 0.0, "{what}");
+    let (inliers, outliers, unmatched) = details.role_counts();
+    assert_eq!(unmatched, 0, "{what}");
+    let share = inliers as f64 / (inliers + outliers) as f64;
+    let aligner = o.estimate.quality.inlier_ratio;
+    assert!(
+        (share - aligner).abs() < 0.03 && share > 0.5,
+        "{what}: {inliers} of {n} pixels are inliers, the aligner found {aligner}"
+    );
+    let mut abs: Vec<f32> = details.residuals.iter().map(|r| r.abs()).collect();
+    abs.sort_by(f32::total_cmp);
+    // Gaussian residuals have their median at 0.67 sigma, a fifth of the 3-sigma bound: a
+    // warp that missed the aligned pose would put it near or past the bound.
+    let median = abs[n / 2];
+    assert!(
+        median < 0.4 * details.residual_limit,
+        "{what}: median |r| {median} grey levels, bound {}",
+        details.residual_limit
+    );
+    let (w, h) = (size.0 as f32, size.1 as f32);
+    assert!(
+        details
+            .keypoints
+            .iter()
+            .all(|&[x, y]| (0.0..w).contains(&x) && (0.0..h).contains(&y)),
+        "{what}: a pixel outside the image"
+    );
+    assert!(!details.map_points.is_empty(), "{what}: no points");
+}
+
+#[test]
+fn stereo_and_direct_stereo_log_their_details() {
+    use vofront::odometry::direct_stereo::{DirectStereoConfig, DirectStereoTracker};
+    use vofront::odometry::stereo::{StereoTracker, StereoTrackerConfig};
+    use vofront_fixtures::stereo::{write_kitti_stereo, StereoSequence};
+
+    let frames = 6;
+    let dir = TempDir::new("stereo");
+    let sequence = StereoSequence::driving(7, frames);
+    write_kitti_stereo(&dir.0, &sequence).expect("write");
+    let dataset = Dataset::open(&dir.0).expect("dataset");
+    let rig = dataset.rig.expect("a stereo rig");
+    let size = (sequence.size.0 as usize, sequence.size.1 as usize);
+
+    let mut stereo = StereoTracker::new(rig, StereoTrackerConfig::default()).expect("stereo");
+    let mut located = 0;
+    let recording = observe_into(&dataset, &mut stereo, &dir.0.join("stereo.rrd"), |o, d| {
+        let (i, tracked) = (o.index, o.estimate.status != TrackStatus::Lost);
+        assert!(tracked, "stereo frame {i} lost");
+        assert!(!d.keypoints.is_empty() && d.residuals.is_empty());
+        assert!(!d.map_points.is_empty(), "frame {i}: no map points");
+        // The first frame makes the map (no PnP); the others are located in it.
+        let (inliers, _, _) = d.role_counts();
+        if i > 0 {
+            assert!(inliers >= 50, "frame {i}: {inliers} inliers");
+            located += 1;
+        }
+    });
+    assert_eq!(located, frames - 1);
+    assert_details_logged(&recording, frames, "stereo");
+
+    let mut direct =
+        DirectStereoTracker::new(rig, DirectStereoConfig::default()).expect("direct stereo");
+    let mut aligned = 0;
+    let recording = observe_into(&dataset, &mut direct, &dir.0.join("direct.rrd"), |o, d| {
+        let (i, tracked) = (o.index, o.estimate.status != TrackStatus::Lost);
+        assert!(tracked, "direct-stereo frame {i} lost");
+        if i > 0 {
+            check_photometric(o, d, size, &format!("direct-stereo frame {i}"));
+            aligned += 1;
+        }
+    });
+    assert_eq!(aligned, frames - 1);
+    assert_details_logged(&recording, frames, "direct-stereo");
+}
+
+#[test]
+fn the_direct_tracker_logs_its_pixels_by_residual() {
+    use vofront::odometry::direct::{DirectTracker, DirectTrackerConfig};
+    use vofront_fixtures::scene::{default_camera, room_trajectory, Scene};
+    use vofront_fixtures::tum::write_tum_sequence;
+
+    let frames = 6;
+    let dir = TempDir::new("direct");
+    let camera = default_camera();
+    write_tum_sequence(
+        &dir.0,
+        &Scene::box_room(5),
+        &camera,
+        (640, 480),
+        &room_trajectory(frames),
+    )
+    .expect("write");
+    let dataset = Dataset::open(&dir.0).expect("dataset");
+    let mut direct = DirectTracker::new(camera, DirectTrackerConfig::default());
+    let mut aligned = 0;
+    let recording = observe_into(&dataset, &mut direct, &dir.0.join("direct.rrd"), |o, d| {
+        let (i, tracked) = (o.index, o.estimate.status != TrackStatus::Lost);
+        assert!(tracked, "direct frame {i} lost");
+        if i > 0 {
+            check_photometric(o, d, (640, 480), &format!("direct frame {i}"));
+            aligned += 1;
+        }
+    });
+    assert_eq!(aligned, frames - 1);
+    assert_details_logged(&recording, frames, "direct");
 }

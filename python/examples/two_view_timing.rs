@@ -33,6 +33,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         camera: Camera::pinhole(Pinhole::new(525.0, 525.0, 319.5, 239.5)?),
         method: Method::All,
         features: 2000,
+        stereo: None,
     };
     let cpu_start = process_cpu_ms()?;
     let mut ms: Vec<f64> = (0..reps)

@@ -7,6 +7,7 @@
 //! `ValueError`, an estimator failure `vofront.VofrontError` (a `ValueError`), unreadable
 //! files `OSError`.
 
+mod compare;
 mod convert;
 mod direct;
 mod errors;
@@ -31,6 +32,7 @@ fn _vofront(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(direct::klt, m)?)?;
     m.add_class::<odometry::Odometry>()?;
     m.add_function(wrap_pyfunction!(odometry::run_odometry, m)?)?;
+    m.add_function(wrap_pyfunction!(compare::compare, m)?)?;
     m.add_function(wrap_pyfunction!(eval::ate, m)?)?;
     m.add_function(wrap_pyfunction!(eval::rpe, m)?)?;
     m.add_function(wrap_pyfunction!(input::load_gray, m)?)?;

@@ -31,8 +31,8 @@ fn odometry_error(e: OdometryError) -> PyErr {
 }
 
 /// The tracker `method` names (`direct`, `feature-rgbd`, `mono`, `stereo`, `direct-stereo`,
-/// or an alias).
-fn tracker_kind(method: &str) -> PyResult<TrackerKind> {
+/// `direct-mono`, or an alias).
+pub fn tracker_kind(method: &str) -> PyResult<TrackerKind> {
     method.parse().map_err(odometry_error)
 }
 
@@ -81,8 +81,10 @@ fn estimate_dict<'py>(
 ///
 /// `method`: `direct` (RGB-D photometric SE(3) to the keyframe), `feature-rgbd` (ORB + depth
 /// + PnP RANSAC), `mono` (monocular ORB, scale arbitrary; `feature` is its former name,
-/// still accepted), `stereo` (ORB on a stereo pair, metric) or `direct-stereo` (photometric
-/// SE(3) with depth from the stereo disparity, metric), as `vofront odometry --method`. `K`
+/// still accepted), `stereo` (ORB on a stereo pair, metric), `direct-stereo` (photometric
+/// SE(3) with depth from the stereo disparity, metric) or `direct-mono` (sparse photometric
+/// SE(3) to keyframes with inverse-depth filters, scale arbitrary), as
+/// `vofront odometry --method`. `K`
 /// 3x3 pixels, `dist` OpenCV `(k1, k2, p1, p2, k3)`; `depth_scale` divides uint16 depth maps
 /// into metres. The stereo methods need the rig: the right camera `K_right`, `dist_right`
 /// (the left camera's when None) and its pose in the left camera frame, `T_left_right` (4x4,
@@ -241,7 +243,8 @@ impl Odometry {
 /// `status` `unreadable` and its `message`), `summary` counts, `camera` (its `source`), and with
 /// ground truth `ground_truth` (M, 8) of the CAMERA (EuRoC body poses times `T_BS`, what the
 /// trajectory is compared with) and `ate` (statistics in metres, aligned as the CLI aligns:
-/// SE(3), Sim(3) for `mono`; None with an `ate_error` message when it cannot be computed).
+/// SE(3), Sim(3) for `mono` and `direct-mono`; None with an `ate_error` message when it cannot
+/// be computed).
 /// `stereo` and `direct-stereo` need a folder with a stereo rig (KITTI `image_1/`, EuRoC
 /// `cam1/`) and are built from its calibration.
 #[pyfunction]

@@ -8,6 +8,7 @@ use pyo3::types::PyDict;
 use vofront::geometry::{estimate_relative_pose, RelativePoseConfig};
 use vofront::report::two_view::{model_name, to_json};
 use vofront::timing::ms_since;
+use vofront::two_view::stereo::StereoFirst;
 use vofront::two_view::{estimate, Inputs, Method, UnknownMethod};
 
 use crate::convert::{bad, camera, depth, gray8, json_to_py, points, pose_matrix};
@@ -65,9 +66,11 @@ pub fn relpose<'py>(
 
 /// Feature pose, direct 2D shift and (with `depth1`) direct SE(3) pose of one pair, computed
 /// and reported by the library exactly as `vofront two-view --json` does (same keys; a failed
-/// method gives `{"error": message}`), each pose also as a 4x4 `T_21` array.
+/// method gives `{"error": message}`), each pose also as a 4x4 `T_21` array. With `right1`
+/// (frame 1's rectified right image) and `baseline` (metres) the metric `feature_stereo` pose
+/// is added, and without `depth1` the direct SE(3) pose uses frame 1's stereo depth.
 #[pyfunction]
-#[pyo3(signature = (img1, img2, K, dist = None, method = "all", depth1 = None, depth_scale = 5000.0, features = 2000))]
+#[pyo3(signature = (img1, img2, K, dist = None, method = "all", depth1 = None, depth_scale = 5000.0, features = 2000, right1 = None, baseline = None))]
 #[allow(non_snake_case)]
 #[allow(clippy::too_many_arguments)]
 pub fn two_view<'py>(
@@ -80,6 +83,8 @@ pub fn two_view<'py>(
     depth1: Option<&Bound<'py, PyAny>>,
     depth_scale: f64,
     features: usize,
+    right1: Option<&Bound<'py, PyAny>>,
+    baseline: Option<f64>,
 ) -> PyResult<Bound<'py, PyDict>> {
     let method: Method = method
         .parse()
@@ -88,6 +93,14 @@ pub fn two_view<'py>(
         Some(d) => Some(depth(d, depth_scale, "depth1")?),
         None => None,
     };
+    let stereo = match (right1.filter(|r| !r.is_none()), baseline) {
+        (Some(r), Some(baseline)) => Some(StereoFirst {
+            right1: gray8(r, "right1")?,
+            baseline,
+        }),
+        (None, None) => None,
+        _ => return Err(bad("right1 and baseline go together")),
+    };
     let inputs = Inputs {
         img1: gray8(img1, "img1")?,
         img2: gray8(img2, "img2")?,
@@ -95,6 +108,7 @@ pub fn two_view<'py>(
         camera: camera(K, dist)?,
         method,
         features,
+        stereo,
     };
     let (report, poses) = release(py, || {
         let outcome = estimate(&inputs);
@@ -106,6 +120,14 @@ pub fn two_view<'py>(
                     .as_ref()
                     .and_then(|r| r.as_ref().ok())
                     .map(|f| f.estimate.pose),
+            ),
+            (
+                "feature_stereo",
+                outcome
+                    .feature_stereo
+                    .as_ref()
+                    .and_then(|r| r.as_ref().ok())
+                    .map(|s| s.pnp.pose),
             ),
             (
                 "direct_se3",

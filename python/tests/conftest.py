@@ -1,6 +1,7 @@
 """Shared fixtures: rendered scenes with exact ground truth, written by the workspace's own
 examples, and the `vofront` command line to compare against."""
 
+import functools
 import json
 import subprocess
 from pathlib import Path
@@ -14,17 +15,50 @@ REPO = Path(__file__).resolve().parents[2]
 K_RENDER = np.array([[525.0, 0.0, 319.5], [0.0, 525.0, 239.5], [0.0, 0.0, 1.0]])
 
 
-def cargo_run(*args: str) -> str:
-    """`cargo run --release -q ARGS` in the workspace; its standard output."""
-    out = subprocess.run(
-        ["cargo", "run", "--release", "-q", *args],
+@functools.lru_cache(maxsize=None)
+def _target_dir() -> Path:
+    """The workspace's release outputs, built once per test session.
+
+    One `cargo build --workspace --bins --examples` resolves features as `cargo test
+    --workspace` does (dev-dependencies included), so after the Rust tests it builds nothing;
+    a `cargo run -p PACKAGE` per call would resolve each package's features on their own and
+    rebuild hundreds of shared dependencies.
+    """
+    build = subprocess.run(
+        ["cargo", "build", "--release", "-q", "--workspace", "--bins", "--examples"],
         cwd=REPO,
         check=False,
         capture_output=True,
         text=True,
     )
+    if build.returncode != 0:
+        raise RuntimeError(f"cargo build failed:\n{build.stderr}")
+    meta = subprocess.run(
+        ["cargo", "metadata", "--format-version", "1", "--no-deps"],
+        cwd=REPO,
+        check=True,
+        capture_output=True,
+        text=True,
+    )
+    return Path(json.loads(meta.stdout)["target_directory"]) / "release"
+
+
+def cargo_run(*args: str) -> str:
+    """What `cargo run --release -q ARGS` prints, for `--bin NAME` or `--example NAME` (with
+    `-p PACKAGE`) followed by `-- PROGRAM_ARGS`, run from the session's one build."""
+    split = args.index("--") if "--" in args else len(args)
+    cargo_args, program_args = list(args[:split]), list(args[split + 1 :])
+    if "--bin" in cargo_args:
+        exe = _target_dir() / cargo_args[cargo_args.index("--bin") + 1]
+    elif "--example" in cargo_args:
+        exe = _target_dir() / "examples" / cargo_args[cargo_args.index("--example") + 1]
+    else:
+        raise ValueError(f"cargo_run needs --bin or --example: {args}")
+    out = subprocess.run(
+        [str(exe), *program_args], cwd=REPO, check=False, capture_output=True, text=True
+    )
     if out.returncode != 0:
-        raise RuntimeError(f"cargo run {' '.join(args)} failed:\n{out.stderr}")
+        raise RuntimeError(f"{exe.name} {' '.join(program_args)} failed:\n{out.stderr}")
     return out.stdout
 
 

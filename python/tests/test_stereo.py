@@ -70,3 +70,28 @@ def test_run_odometry_refuses_a_stereo_method_without_a_right_camera(stereo_sequ
         shutil.copy(stereo_sequence / name, mono / name)
     with pytest.raises(ValueError, match="stereo rig"):
         vofront.run_odometry(mono, "direct-stereo")
+
+
+def test_two_view_with_a_right_image_is_metric_and_equals_the_cli(stereo_sequence):
+    k, baseline = rig(stereo_sequence)
+    poses = np.loadtxt(stereo_sequence / "poses.txt").reshape(-1, 3, 4)
+    t_w = [np.vstack([p, [0, 0, 0, 1]]) for p in poses]
+    truth = np.linalg.inv(t_w[2]) @ t_w[0]
+    left0, right0, left2 = (stereo_sequence / "image_0" / "000000.png",
+                            stereo_sequence / "image_1" / "000000.png",
+                            stereo_sequence / "image_0" / "000002.png")
+    out = vofront.two_view(vofront.load_gray(left0), vofront.load_gray(left2), k,
+                           right1=vofront.load_gray(right0), baseline=baseline)
+    stereo = out["feature_stereo"]
+    assert stereo["quality"]["verdict"] == "ok"
+    motion = np.linalg.norm(truth[:3, 3])
+    assert np.linalg.norm(stereo["T_21"][:3, 3] - truth[:3, 3]) < 0.02 * motion
+    assert out["recommended"]["estimate"] == "feature_stereo"
+    fx, fy, cx, cy = k[0, 0], k[1, 1], k[0, 2], k[1, 2]
+    cli = cli_json("two-view", str(left0), str(left2), "--right1", str(right0),
+                   "--baseline", str(baseline), "--fx", str(fx), "--fy", str(fy),
+                   "--cx", str(cx), "--cy", str(cy))
+    np.testing.assert_allclose(cli["feature_stereo"]["t"], stereo["t"], atol=1e-9)
+    with pytest.raises(ValueError):
+        vofront.two_view(vofront.load_gray(left0), vofront.load_gray(left2), k,
+                         right1=vofront.load_gray(right0))

@@ -53,6 +53,8 @@ def two_view(
     depth1: Optional[_Depth] = None,
     depth_scale: float = 5000.0,
     features: int = 2000,
+    right1: Optional[_Image] = None,
+    baseline: Optional[float] = None,
 ) -> dict[str, Any]:
     """Feature pose, direct 2D shift and (with ``depth1``) direct SE(3) pose of one pair.
 
@@ -61,6 +63,9 @@ def two_view(
     an estimate or ``{"error": message}``. ``depth1``: uint16 raw units divided by
     ``depth_scale`` (5000 per metre for TUM) or float metres. Every estimate with a pose also
     carries ``T_21`` as a 4x4 float64 array (feature: unit translation; SE(3): metres).
+    ``right1`` (frame 1's rectified right image) with ``baseline`` (metres) adds
+    ``feature_stereo``, the metric pose of frame 2 by PnP against frame 1's stereo points, and
+    without ``depth1`` runs ``direct_se3`` on frame 1's stereo depth.
     """
 
 def relpose(
@@ -137,7 +142,8 @@ def klt(
 @final
 class Odometry:
     """Frame-by-frame visual odometry: ``direct``, ``feature-rgbd``, ``mono`` (``feature``,
-    its former name, is still accepted), ``stereo`` or ``direct-stereo``, the trackers of
+    its former name, is still accepted), ``stereo``, ``direct-stereo`` or ``direct-mono``
+    (``direct_mono``; sparse photometric, monocular, scale arbitrary), the trackers of
     ``vofront odometry --method``. The stereo methods need the rig: ``T_left_right`` (4x4
     pose of the right camera in the left camera frame, metres) or ``baseline`` (metres, a
     rectified pair), and ``K_right``/``dist_right`` when the right camera differs."""
@@ -193,6 +199,24 @@ def run_odometry(
     (``source``: where the camera came from); with ground truth ``ground_truth`` (M, 8), the
     CAMERA poses (EuRoC: the body poses times ``T_BS``), and ``ate`` (statistics, metres;
     SE(3)-aligned, Sim(3) for ``mono``; None with ``ate_error`` when it cannot be computed).
+    """
+
+def compare(
+    dataset_path: Union[str, PathLike],
+    methods: Optional[list[str]] = None,
+    K: Optional[_ArrayLike] = None,
+    dist: Optional[_ArrayLike] = None,
+    max_frames: Optional[int] = None,
+    out_dir: Optional[Union[str, PathLike]] = None,
+) -> dict[str, Any]:
+    """Runs every tracker the dataset allows (RGB-D ones with depth, stereo ones with a stereo
+    rig, monocular ones always), or the ``methods`` named, on the same frames, like
+    ``vofront compare``, and returns the report of ``vofront compare --json``: ``dataset``,
+    ``format``, ``frames``, ``camera``, ``ground_truth``, ``trackers`` (per tracker
+    ``method``, ``paradigm``, ``alignment``, ``error`` (None when it ran), ``frames``,
+    ``tracked``, ``posed``, ``lost``, ``segment_breaks``, ``lost_spans``, ``ms_mean``,
+    ``ms_median``, ``ate``, ``ate_percent``, ``rpe``, ``series``), ``skipped``, ``wall_ms``,
+    ``interrupted``. ``out_dir``: also write ``report.json`` and ``report.html`` there.
     """
 
 def ate(

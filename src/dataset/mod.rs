@@ -371,6 +371,13 @@ impl Dataset {
         Ok(dataset)
     }
 
+    /// The bag behind a ROS 2 bag dataset (feature `mcap`): how it was read
+    /// ([`bag::BagFrames::indexed`]) and its chunk cache; `None` for a folder.
+    #[cfg(feature = "mcap")]
+    pub fn bag_frames(&self) -> Option<&bag::BagFrames> {
+        self.bag.as_deref()
+    }
+
     /// What opening the dataset met and worked around (a bag cut off early, images without
     /// a depth or right partner left out); empty for a folder.
     pub fn notes(&self) -> Vec<String> {

@@ -11,13 +11,14 @@
 use std::sync::Arc;
 use std::time::Instant;
 
-use nalgebra::Isometry3;
+use nalgebra::{Isometry3, Vector2};
 use vofront_core::Camera;
 use vofront_direct::{DirectError, RgbdFrame, Se3Config, Se3Reference, Undistorter};
 use vofront_image::Image;
 use vofront_robust::{QualityConfig, Verdict};
 
 use super::keyframe::{KeyframePolicy, KeyframeView};
+use super::observe::FrameDetails;
 use super::{ms_since, FrameEstimate, FrameQuality, KeyframeSlot, TrackStatus, Tracker};
 use crate::dataset::Frame;
 use crate::error::VoError;
@@ -93,6 +94,8 @@ pub struct DirectTracker {
     /// keyframe (`None` without lens distortion).
     undistorter: Option<Arc<Undistorter>>,
     slot: KeyframeSlot<Keyframe>,
+    /// The last frame's details, kept while an observer asks ([`Tracker::keep_details`]).
+    details: Option<FrameDetails>,
 }
 
 fn median_depth(depth: &Image<f32>) -> f64 {
@@ -113,6 +116,7 @@ impl DirectTracker {
             camera,
             undistorter: None,
             slot: KeyframeSlot::default(),
+            details: None,
         }
     }
 
@@ -161,8 +165,21 @@ impl DirectTracker {
 }
 
 impl Tracker for DirectTracker {
+    /// The keyframe's selected pixels warped into the frame with their photometric residuals
+    /// (inliers within the aligner's `inlier_sigmas` robust sigmas), and their points.
+    fn keep_details(&mut self, keep: bool) {
+        self.details = keep.then(FrameDetails::default);
+    }
+
+    fn details(&self) -> Option<&FrameDetails> {
+        self.details.as_ref()
+    }
+
     fn track(&mut self, frame: &Frame) -> FrameEstimate {
         let start = Instant::now();
+        if let Some(details) = &mut self.details {
+            details.clear();
+        }
         let predicted = self.slot.predict();
         let current = frame.image().to_f32();
         let Some(kf) = &mut self.slot.keyframe else {
@@ -209,6 +226,23 @@ impl Tracker for DirectTracker {
         let t_wc = kf.t_wc * fit.pose.inverse();
         self.slot.motion.update(t_wc);
         let first_residual = *kf.first_residual.get_or_insert(fit.rmse);
+        if let Some(details) = &mut self.details {
+            let camera = &self.camera;
+            // The aligner's pixels are pinhole ones: drawn where the lens puts them.
+            let to_image = |px: [f32; 2]| {
+                let x = camera
+                    .pinhole
+                    .to_normalized(&Vector2::new(f64::from(px[0]), f64::from(px[1])));
+                let u = camera.normalized_to_pixel(&x);
+                Some([u.x as f32, u.y as f32])
+            };
+            let limit = self.cfg.se3.inlier_sigmas * fit.sigma as f32;
+            if let Ok(pixels) = kf.reference.residuals(&current, &fit.pose, fit.a, fit.b) {
+                details.photometric(&pixels, limit, to_image);
+            }
+            let points = kf.reference.points().map(|p| kf.t_wc * p);
+            details.map_points.extend(points);
+        }
         let view = KeyframeView {
             t_cur_kf: fit.pose,
             median_depth: kf.median_depth,
@@ -223,15 +257,7 @@ impl Tracker for DirectTracker {
                 keyframe = true;
             }
         }
-        let quality = FrameQuality {
-            inliers: (fit.inlier_ratio * fit.valid_pixels as f64).round() as usize,
-            inlier_ratio: fit.inlier_ratio,
-            rmse: fit.rmse,
-            iterations: fit.iterations.iter().sum(),
-            covariance_trace: fit.covariance.map(|c| c.trace()),
-            keyframe,
-            ms: ms_since(start),
-        };
+        let quality = FrameQuality::of_se3(&fit, keyframe, ms_since(start));
         FrameEstimate {
             pose_wc: t_wc,
             status: TrackStatus::Ok,

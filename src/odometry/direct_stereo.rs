@@ -33,6 +33,7 @@ use vofront_image::{Image, ImageError};
 use vofront_robust::{QualityConfig, Verdict};
 
 use super::keyframe::{KeyframePolicy, KeyframeView};
+use super::observe::FrameDetails;
 use super::stereo::rectified::Rectified;
 use super::stereo::StereoFrameError;
 use super::{ms_since, FrameEstimate, FrameQuality, KeyframeSlot, TrackStatus, Tracker};
@@ -131,6 +132,8 @@ pub struct DirectStereoTracker {
     /// The rectification, built for the first frame's size.
     rectified: Option<Rectified>,
     slot: KeyframeSlot<Keyframe>,
+    /// The last frame's details, kept while an observer asks ([`Tracker::keep_details`]).
+    details: Option<FrameDetails>,
 }
 
 impl DirectStereoTracker {
@@ -146,6 +149,7 @@ impl DirectStereoTracker {
             rig,
             rectified: None,
             slot: KeyframeSlot::default(),
+            details: None,
         })
     }
 
@@ -274,6 +278,16 @@ impl DirectStereoTracker {
         if let Some(kf) = &mut self.slot.keyframe {
             kf.first_residual.get_or_insert(fit.rmse);
         }
+        if let (Some(details), Some(kf), Some(r)) =
+            (&mut self.details, &self.slot.keyframe, &self.rectified)
+        {
+            let limit = self.cfg.se3.inlier_sigmas * fit.sigma as f32;
+            if let Ok(pixels) = kf.reference.residuals(&current, &fit.pose, fit.a, fit.b) {
+                details.photometric(&pixels, limit, |px| r.raw_pixel(px));
+            }
+            let points = kf.reference.points().map(|p| r.t_raw_rect * (kf.t_wc * p));
+            details.map_points.extend(points);
+        }
         self.slot.motion.update(t_wc);
         let mut keyframe = false;
         if self.cfg.keyframe.needs_keyframe(&view) {
@@ -282,15 +296,7 @@ impl DirectStereoTracker {
                 keyframe = true;
             }
         }
-        let quality = FrameQuality {
-            inliers: (fit.inlier_ratio * fit.valid_pixels as f64).round() as usize,
-            inlier_ratio: fit.inlier_ratio,
-            rmse: fit.rmse,
-            iterations: fit.iterations.iter().sum(),
-            covariance_trace: fit.covariance.map(|c| c.trace()),
-            keyframe,
-            ms: ms_since(start),
-        };
+        let quality = FrameQuality::of_se3(&fit, keyframe, ms_since(start));
         FrameEstimate {
             pose_wc: t_wc,
             status: TrackStatus::Ok,
@@ -309,6 +315,9 @@ fn frame_error(e: StereoFrameError) -> VoError {
 
 impl Tracker for DirectStereoTracker {
     fn track(&mut self, frame: &Frame) -> FrameEstimate {
+        if let Some(details) = &mut self.details {
+            details.clear();
+        }
         let predicted = self.slot.predict();
         let mut estimate = self.track_rectified(frame, predicted);
         // The rectified left camera is the raw one turned by R_left: T_wc = T_rr T_wc' T_rr^-1.
@@ -320,5 +329,16 @@ impl Tracker for DirectStereoTracker {
 
     fn needs_right(&self) -> bool {
         true
+    }
+
+    /// The keyframe's selected pixels warped into the frame (rectified, drawn in the raw
+    /// left image) with their photometric residuals (inliers within the aligner's
+    /// `inlier_sigmas` robust sigmas), and their stereo points.
+    fn keep_details(&mut self, keep: bool) {
+        self.details = keep.then(FrameDetails::default);
+    }
+
+    fn details(&self) -> Option<&FrameDetails> {
+        self.details.as_ref()
     }
 }

@@ -16,7 +16,9 @@
 //! - [`mono`]: monocular ORB: two-view initialisation, triangulated points, PnP tracking;
 //! - [`stereo`]: ORB on a rectified stereo pair, metric points at once, PnP tracking;
 //! - [`direct_stereo`]: photometric SE(3) alignment to keyframes with depth from the stereo
-//!   disparity (metric).
+//!   disparity (metric);
+//! - [`direct_mono`]: sparse photometric SE(3) alignment to keyframes whose points carry
+//!   inverse-depth filters refined by epipolar search (monocular, scale arbitrary).
 //!
 //! What every sequential tracker may need besides its own alignment lives here too, crate-
 //! private: `coast` (the motion model keeps its velocity through up to ten lost frames, then
@@ -29,6 +31,7 @@
 
 mod coast;
 pub mod direct;
+pub mod direct_mono;
 pub mod direct_stereo;
 pub mod feature_rgbd;
 pub mod graph;
@@ -109,6 +112,20 @@ pub struct FrameQuality {
 }
 
 impl FrameQuality {
+    /// The scores of a photometric SE(3) alignment `fit` (inliers counted among its valid
+    /// pixels), on a frame that took `ms` milliseconds and became a keyframe when `keyframe`.
+    pub(crate) fn of_se3(fit: &vofront_direct::Se3Result, keyframe: bool, ms: f64) -> Self {
+        Self {
+            inliers: (fit.inlier_ratio * fit.valid_pixels as f64).round() as usize,
+            inlier_ratio: fit.inlier_ratio,
+            rmse: fit.rmse,
+            iterations: fit.iterations.iter().sum(),
+            covariance_trace: fit.covariance.map(|c| c.trace()),
+            keyframe,
+            ms,
+        }
+    }
+
     /// The scores of a PnP location `fit` among `matches` candidate matches (`keyframe` false
     /// and `ms` 0, for the caller to set).
     pub(crate) fn of_pnp(fit: &PnpResult, matches: usize) -> Self {

@@ -11,6 +11,7 @@
 use std::io;
 
 use nalgebra::Point3;
+use vofront_direct::PixelResidual;
 use vofront_features::{Features, Match};
 
 use super::FrameEstimate;
@@ -36,8 +37,16 @@ pub struct FrameDetails {
     /// The role of each keypoint (as many as `keypoints`).
     pub roles: Vec<KeypointRole>,
     /// The points of the tracker's local map after this frame, world frame (map units: metres
-    /// for the RGB-D and stereo trackers, the arbitrary scale of a monocular map).
+    /// for the RGB-D and stereo trackers, the arbitrary scale of a monocular map; the direct
+    /// trackers' keyframe pixels with depth).
     pub map_points: Vec<Point3<f64>>,
+    /// The direct trackers' photometric residual of each keypoint (their keyframe's selected
+    /// pixels warped into this frame), `I_cur - a I_ref - b` in grey levels; empty for the
+    /// feature trackers. A keypoint is an inlier when `|r| <= residual_limit`.
+    pub residuals: Vec<f32>,
+    /// The inlier bound on `|residuals|` (the aligner's `inlier_sigmas` times its robust
+    /// scale), grey levels; 0 without residuals.
+    pub residual_limit: f32,
 }
 
 impl FrameDetails {
@@ -46,6 +55,45 @@ impl FrameDetails {
         self.keypoints.clear();
         self.roles.clear();
         self.map_points.clear();
+        self.residuals.clear();
+        self.residual_limit = 0.0;
+    }
+
+    /// Records the direct aligner's warped pixels (`to_image` takes a pixel of the aligner's
+    /// geometry to the frame's image, `None` when it has no place there) with their residuals;
+    /// inliers within `limit` grey levels, outliers beyond.
+    pub(crate) fn photometric(
+        &mut self,
+        pixels: &[PixelResidual],
+        limit: f32,
+        to_image: impl Fn([f32; 2]) -> Option<[f32; 2]>,
+    ) {
+        self.keypoints.clear();
+        self.roles.clear();
+        self.residuals.clear();
+        self.residual_limit = limit;
+        for p in pixels {
+            let Some(at) = to_image(p.pixel) else {
+                continue;
+            };
+            self.keypoints.push(at);
+            self.residuals.push(p.residual);
+            self.roles.push(if p.residual.abs() <= limit {
+                KeypointRole::Inlier
+            } else {
+                KeypointRole::Outlier
+            });
+        }
+    }
+
+    /// Moves every keypoint through `to_image` (one of another geometry, such as a rectified
+    /// one, to the frame's image); a keypoint without a place there stays as it was.
+    pub(crate) fn map_keypoints(&mut self, to_image: impl Fn([f32; 2]) -> Option<[f32; 2]>) {
+        for k in &mut self.keypoints {
+            if let Some(at) = to_image(*k) {
+                *k = at;
+            }
+        }
     }
 
     /// Records the keypoints of `features`, all [`KeypointRole::Unmatched`].

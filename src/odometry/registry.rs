@@ -37,6 +37,7 @@ use vofront_core::Camera;
 use vofront_features::FeatureError;
 
 use super::direct::{DirectTracker, DirectTrackerConfig};
+use super::direct_mono::{DirectMonoConfig, DirectMonoError, DirectMonoTracker};
 use super::direct_stereo::{DirectStereoConfig, DirectStereoError, DirectStereoTracker};
 use super::feature_rgbd::{FeatureRgbdConfig, FeatureRgbdTracker};
 use super::mono::{MonoConfig, MonoTracker};
@@ -69,6 +70,42 @@ pub enum TrackerKind {
     /// depth comes from the semi-dense stereo disparity; metric poses
     /// ([`super::direct_stereo::DirectStereoTracker`]). Needs a stereo rig.
     DirectStereo,
+    /// `direct-mono` (alias `direct_mono`): sparse photometric SE(3) alignment with affine
+    /// brightness to keyframes whose points carry inverse-depth filters refined by epipolar
+    /// search, started from a two-view feature estimate; the trajectory's scale is arbitrary
+    /// ([`super::direct_mono::DirectMonoTracker`]).
+    DirectMono,
+}
+
+/// How a tracker measures a frame against its reference: by matched features (its
+/// [`super::FrameQuality`] counts correspondences and its `rmse` is a reprojection error in
+/// pixels) or directly on the pixels (`inliers` counts pixels and `rmse` is the photometric
+/// residual in grey levels).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, serde::Serialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Paradigm {
+    /// Keypoints matched and located (ORB, PnP).
+    Feature,
+    /// Photometric alignment of pixels.
+    Direct,
+}
+
+impl Paradigm {
+    /// Lower-case name (`feature`, `direct`), the JSON spelling.
+    pub fn name(self) -> &'static str {
+        match self {
+            Self::Feature => "feature",
+            Self::Direct => "direct",
+        }
+    }
+
+    /// Unit of [`super::FrameQuality::rmse`] for trackers of this paradigm.
+    pub fn residual_unit(self) -> &'static str {
+        match self {
+            Self::Feature => "px",
+            Self::Direct => "grey levels",
+        }
+    }
 }
 
 /// Options a front-end may set on any tracker; `None` keeps the tracker's default.
@@ -86,6 +123,7 @@ impl TrackerKind {
         Self::Mono,
         Self::Stereo,
         Self::DirectStereo,
+        Self::DirectMono,
     ];
 
     /// The name front-ends use (`--method NAME`, JSON `method`).
@@ -96,6 +134,7 @@ impl TrackerKind {
             Self::Mono => "mono",
             Self::Stereo => "stereo",
             Self::DirectStereo => "direct-stereo",
+            Self::DirectMono => "direct-mono",
         }
     }
 
@@ -108,6 +147,7 @@ impl TrackerKind {
             Self::Mono => &["feature"],
             Self::Stereo => &[],
             Self::DirectStereo => &["direct_stereo"],
+            Self::DirectMono => &["direct_mono"],
         }
     }
 
@@ -130,6 +170,10 @@ impl TrackerKind {
                 "Stereo direct: photometric SE(3) alignment to keyframes with depth from the \
                  stereo disparity; needs a stereo rig"
             }
+            Self::DirectMono => {
+                "Monocular direct: sparse photometric SE(3) alignment to keyframes with \
+                 inverse-depth filters; arbitrary scale (alias: direct_mono)"
+            }
         }
     }
 
@@ -137,7 +181,7 @@ impl TrackerKind {
     pub fn needs_depth(self) -> bool {
         match self {
             Self::Direct | Self::FeatureRgbd => true,
-            Self::Mono | Self::Stereo | Self::DirectStereo => false,
+            Self::Mono | Self::Stereo | Self::DirectStereo | Self::DirectMono => false,
         }
     }
 
@@ -153,8 +197,35 @@ impl TrackerKind {
     pub fn alignment(self) -> Alignment {
         match self {
             Self::Direct | Self::FeatureRgbd | Self::Stereo | Self::DirectStereo => Alignment::Se3,
-            Self::Mono => Alignment::Sim3,
+            Self::Mono | Self::DirectMono => Alignment::Sim3,
         }
+    }
+
+    /// Whether it matches features or aligns pixels ([`Paradigm`]).
+    pub fn paradigm(self) -> Paradigm {
+        match self {
+            Self::Direct | Self::DirectStereo | Self::DirectMono => Paradigm::Direct,
+            Self::FeatureRgbd | Self::Mono | Self::Stereo => Paradigm::Feature,
+        }
+    }
+
+    /// Checks that `dataset` holds what this kind needs: [`OdometryError::NoDepth`] when it
+    /// needs depth and no frame has any, [`OdometryError::NoStereo`] when it needs a stereo
+    /// rig and the dataset has none.
+    pub fn check(self, dataset: &Dataset) -> Result<(), OdometryError> {
+        if self.needs_depth() && dataset.frames.iter().all(|f| f.depth.is_none()) {
+            return Err(OdometryError::NoDepth {
+                dataset: dataset.root.clone(),
+                kind: self,
+            });
+        }
+        if self.needs_right() && !dataset.rig.as_ref().is_some_and(Rig::is_stereo) {
+            return Err(OdometryError::NoStereo {
+                dataset: dataset.root.clone(),
+                kind: self,
+            });
+        }
+        Ok(())
     }
 
     /// A tracker of this kind for frames of `camera`, its default configuration with
@@ -176,6 +247,11 @@ impl TrackerKind {
                 let mut cfg = MonoConfig::default();
                 cfg.orb.n_features = options.features.unwrap_or(cfg.orb.n_features);
                 Box::new(MonoTracker::new(camera, cfg)?)
+            }
+            Self::DirectMono => {
+                let mut cfg = DirectMonoConfig::default();
+                cfg.orb.n_features = options.features.unwrap_or(cfg.orb.n_features);
+                Box::new(DirectMonoTracker::new(camera, cfg)?)
             }
             Self::Stereo | Self::DirectStereo => {
                 return Err(OdometryError::NeedsStereoRig { kind: self })
@@ -290,6 +366,9 @@ pub enum OdometryError {
     /// The direct stereo tracker could not be built.
     #[error(transparent)]
     DirectStereo(#[from] DirectStereoError),
+    /// The direct monocular tracker could not be built.
+    #[error(transparent)]
+    DirectMono(#[from] DirectMonoError),
     /// The run ended early: a sink refused a record.
     #[error(transparent)]
     Run(#[from] RunError),
@@ -366,24 +445,14 @@ pub struct Evaluation {
 impl Session {
     /// The session of `kind` on `dataset`, the camera chosen by [`choose_camera`]; fails with
     /// [`OdometryError::NoDepth`] when `kind` needs depth and no frame has any, with
-    /// [`OdometryError::NoStereo`] when it needs a stereo rig and the dataset has none.
+    /// [`OdometryError::NoStereo`] when it needs a stereo rig and the dataset has none
+    /// ([`TrackerKind::check`]).
     pub fn new(
         dataset: Dataset,
         kind: TrackerKind,
         given: Option<(Camera, &str)>,
     ) -> Result<Self, OdometryError> {
-        if kind.needs_depth() && dataset.frames.iter().all(|f| f.depth.is_none()) {
-            return Err(OdometryError::NoDepth {
-                dataset: dataset.root.clone(),
-                kind,
-            });
-        }
-        if kind.needs_right() && !dataset.rig.as_ref().is_some_and(Rig::is_stereo) {
-            return Err(OdometryError::NoStereo {
-                dataset: dataset.root.clone(),
-                kind,
-            });
-        }
+        kind.check(&dataset)?;
         let (camera, camera_origin) = choose_camera(given, &dataset);
         Ok(Self {
             dataset,
@@ -454,94 +523,4 @@ impl Session {
 }
 
 #[cfg(test)]
-mod tests {
-    use nalgebra::Isometry3;
-
-    use super::*;
-
-    #[test]
-    fn names_and_aliases_parse_to_their_kind() {
-        for (name, kind) in [
-            ("direct", TrackerKind::Direct),
-            ("feature-rgbd", TrackerKind::FeatureRgbd),
-            ("feature_rgbd", TrackerKind::FeatureRgbd),
-            ("mono", TrackerKind::Mono),
-            ("feature", TrackerKind::Mono),
-            ("stereo", TrackerKind::Stereo),
-            ("direct-stereo", TrackerKind::DirectStereo),
-            ("direct_stereo", TrackerKind::DirectStereo),
-        ] {
-            assert_eq!(name.parse::<TrackerKind>().unwrap(), kind, "{name}");
-        }
-        for kind in TrackerKind::ALL {
-            assert_eq!(kind.name().parse::<TrackerKind>().unwrap(), *kind);
-            assert_eq!(kind.to_string(), kind.name());
-        }
-        let err = "sideways".parse::<TrackerKind>().unwrap_err().to_string();
-        assert_eq!(
-            err,
-            "unknown tracker method 'sideways' (known: direct, feature-rgbd, mono, stereo, \
-             direct-stereo; aliases feature_rgbd, feature, direct_stereo)"
-        );
-    }
-
-    #[test]
-    fn only_mono_is_similarity_aligned_and_only_the_stereo_kinds_need_a_right_image() {
-        let needs: Vec<_> = TrackerKind::ALL
-            .iter()
-            .map(|k| (k.needs_depth(), k.needs_right()))
-            .collect();
-        assert_eq!(
-            needs,
-            [
-                (true, false),
-                (true, false),
-                (false, false),
-                (false, true),
-                (false, true)
-            ]
-        );
-        for kind in TrackerKind::ALL {
-            let want = if *kind == TrackerKind::Mono {
-                Alignment::Sim3
-            } else {
-                Alignment::Se3
-            };
-            assert_eq!(kind.alignment(), want, "{kind}");
-        }
-    }
-
-    #[test]
-    fn every_kind_builds_for_its_rig_and_any_budget() {
-        let camera = default_camera();
-        let right_in_left = Isometry3::translation(0.1, 0.0, 0.0);
-        let mono = Rig::mono(camera).unwrap();
-        let stereo = Rig::stereo(camera, Isometry3::identity(), camera, right_in_left).unwrap();
-        for kind in TrackerKind::ALL {
-            for features in [None, Some(300)] {
-                let options = TrackerOptions { features };
-                let built = kind.build_for_rig(&stereo, &options);
-                assert!(built.is_ok(), "{kind} {features:?}");
-                assert_eq!(built.unwrap().needs_right(), kind.needs_right(), "{kind}");
-                let on_mono = kind.build_for_rig(&mono, &options);
-                let by_camera = kind.build(camera, &options);
-                if kind.needs_right() {
-                    for err in [on_mono.err(), by_camera.err()] {
-                        assert!(
-                            matches!(err, Some(OdometryError::NeedsStereoRig { .. })),
-                            "{kind}"
-                        );
-                    }
-                } else {
-                    assert!(on_mono.is_ok() && by_camera.is_ok(), "{kind}");
-                }
-            }
-        }
-    }
-
-    #[test]
-    fn the_default_camera_is_the_tum_ros_preset() {
-        let preset = crate::presets::camera_preset("tum-ros").map(|p| p.camera);
-        assert_eq!(Some(default_camera()), preset);
-    }
-}
+mod tests;

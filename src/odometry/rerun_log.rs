@@ -8,10 +8,10 @@
 //! | --- | --- | --- |
 //! | [`CAMERA`] | `Transform3D`: the pose `T_wc` | each frame that is not lost |
 //! | [`IMAGE`] | `Pinhole` (static: `fx`, `fy`, `cx`, `cy`, the frame size) and the grey `Image` | each frame |
-//! | [`KEYPOINTS`] | `Points2D` in pixels: inliers green, outliers red, unmatched grey | each frame with details |
+//! | [`KEYPOINTS`] | `Points2D` in pixels: the feature trackers' keypoints, inliers green, outliers red, unmatched grey ([`role_colour`]); the direct trackers' keyframe pixels warped into the frame, green to red by their photometric residual ([`residual_colour`]) | each frame with details (every tracker) |
 //! | [`TRAJECTORY`] | `LineStrips3D`: the camera centres tracked so far | each frame that is not lost |
 //! | [`GROUND_TRUTH`] | `LineStrips3D` (static): the ground-truth centres, relative to the pose at the first frame | once, when known |
-//! | [`MAP_POINTS`] | `Points3D`: the local map's points (map units) | each frame with details |
+//! | [`MAP_POINTS`] | `Points3D`: the local map's points (map units; the direct trackers' keyframe pixels with depth) | each frame with details |
 //! | [`INLIERS`], [`RESIDUAL`], [`VERDICT`], [`TIME`] | `Scalars`: inliers, residual RMSE, verdict (0 ok, 1 unreliable, 2 failed), tracking time in ms | each frame (the verdict when the pose has one) |
 //! | [`STATUS`] | `TextLog`: the status and the message | each frame |
 //!
@@ -206,11 +206,20 @@ impl RerunSink {
             )?;
         }
         if let Some(details) = o.details {
-            let colours = details.roles.iter().map(|role| match role {
-                KeypointRole::Inlier => Color::from_rgb(40, 220, 40),
-                KeypointRole::Outlier => Color::from_rgb(230, 40, 40),
-                KeypointRole::Unmatched => Color::from_rgb(150, 150, 150),
-            });
+            let colours: Vec<Color> = if details.residuals.is_empty() {
+                details
+                    .roles
+                    .iter()
+                    .map(|&role| role_colour(role))
+                    .collect()
+            } else {
+                let limit = details.residual_limit;
+                details
+                    .residuals
+                    .iter()
+                    .map(|&r| residual_colour(r, limit))
+                    .collect()
+            };
             rec.log(
                 KEYPOINTS,
                 &Points2D::new(details.keypoints.iter().copied())
@@ -223,6 +232,34 @@ impl RerunSink {
             )?;
         }
         log_scalars(rec, estimate)
+    }
+}
+
+/// The colour of a keypoint's role: inliers green, outliers red, unmatched grey.
+pub fn role_colour(role: KeypointRole) -> Color {
+    match role {
+        KeypointRole::Inlier => Color::from_rgb(40, 220, 40),
+        KeypointRole::Outlier => Color::from_rgb(230, 40, 40),
+        KeypointRole::Unmatched => Color::from_rgb(150, 150, 150),
+    }
+}
+
+/// The colour of a direct tracker's pixel of residual `r` (grey levels) under the inlier
+/// bound `limit`: from green at `r = 0` through yellow at `|r| = limit` (the last inlier) to
+/// red at `|r| >= 2 limit`.
+pub fn residual_colour(r: f32, limit: f32) -> Color {
+    let t = if limit > 0.0 {
+        (r.abs() / (2.0 * limit)).clamp(0.0, 1.0)
+    } else {
+        1.0
+    };
+    let ramp = |from: f32, to: f32, t: f32| (from + (to - from) * t).round() as u8;
+    if t <= 0.5 {
+        let t = 2.0 * t;
+        Color::from_rgb(ramp(40.0, 230.0, t), ramp(220.0, 210.0, t), 40)
+    } else {
+        let t = 2.0 * t - 1.0;
+        Color::from_rgb(230, ramp(210.0, 40.0, t), 40)
     }
 }
 

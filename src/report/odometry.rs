@@ -3,10 +3,11 @@
 //! ground truth.
 
 use serde::Serialize;
+use vofront_core::Camera;
 
 use super::Entry;
 use crate::eval::{AteResult, RotationScale, RpeResult, Stats};
-use crate::odometry::registry::{Evaluation, Session};
+use crate::odometry::registry::{CameraOrigin, Evaluation, Session};
 use crate::odometry::run::{RunOutput, RunSummary};
 
 /// The summary of a run (`vofront odometry --json`; keys documented in the README).
@@ -69,6 +70,22 @@ pub struct CameraReport {
     pub distortion_model: &'static str,
 }
 
+impl CameraReport {
+    /// The report of `camera`, which came from `origin`.
+    pub fn new(camera: &Camera, origin: &CameraOrigin) -> Self {
+        let (k, d) = (camera.pinhole, camera.distortion);
+        Self {
+            source: origin.to_string(),
+            fx: k.fx,
+            fy: k.fy,
+            cx: k.cx,
+            cy: k.cy,
+            distortion: d.coefficients(),
+            distortion_model: d.model_name(),
+        }
+    }
+}
+
 /// ATE statistics (metres) with the number of associated poses and the alignment.
 #[derive(Debug, Clone, Serialize)]
 pub struct AteReport {
@@ -81,6 +98,17 @@ pub struct AteReport {
     pub alignment: String,
 }
 
+impl AteReport {
+    /// The report of `ate`, computed after `alignment` (`se3`, `sim3` or `none`).
+    pub fn new(ate: &AteResult, alignment: String) -> Self {
+        Self {
+            stats: ate.stats,
+            pairs: ate.pairs.len(),
+            alignment,
+        }
+    }
+}
+
 /// RPE statistics of consecutive poses.
 #[derive(Debug, Clone, Serialize)]
 pub struct RpeReport {
@@ -90,6 +118,17 @@ pub struct RpeReport {
     pub rotation_deg: Stats,
     /// Estimated over true rotation; `None` when the ground truth does not rotate.
     pub rotation_scale: Option<RotationScale>,
+}
+
+impl RpeReport {
+    /// The report of `rpe`.
+    pub fn new(rpe: &RpeResult) -> Self {
+        Self {
+            translation: rpe.translation,
+            rotation_deg: rpe.rotation_deg,
+            rotation_scale: rpe.rotation_scale,
+        }
+    }
 }
 
 /// The files a run wrote (paths as given).
@@ -115,20 +154,11 @@ impl OdometryReport {
         outputs: Outputs,
     ) -> Self {
         let s = &out.summary;
-        let (k, d) = (session.camera.pinhole, session.camera.distortion);
         let alignment = evaluation.map(|e| format!("{:?}", e.alignment).to_lowercase());
         Self {
             dataset: session.dataset.root.display().to_string(),
             format: format!("{:?}", session.dataset.kind).to_lowercase(),
-            camera: CameraReport {
-                source: session.camera_origin.to_string(),
-                fx: k.fx,
-                fy: k.fy,
-                cx: k.cx,
-                cy: k.cy,
-                distortion: d.coefficients(),
-                distortion_model: d.model_name(),
-            },
+            camera: CameraReport::new(&session.camera, &session.camera_origin),
             method: session.kind.name(),
             frames: s.frames,
             tracked: out.trajectory.len(),
@@ -142,19 +172,11 @@ impl OdometryReport {
             interrupted: s.interrupted,
             lost_for_good: RunSummary::lost_for_good(&out.records),
             ate: evaluation.map(|e| {
-                Entry::of(&e.ate, |a: &AteResult| AteReport {
-                    stats: a.stats,
-                    pairs: a.pairs.len(),
-                    alignment: alignment.clone().unwrap_or_default(),
+                Entry::of(&e.ate, |a| {
+                    AteReport::new(a, alignment.clone().unwrap_or_default())
                 })
             }),
-            rpe: evaluation.map(|e| {
-                Entry::of(&e.rpe, |r: &RpeResult| RpeReport {
-                    translation: r.translation,
-                    rotation_deg: r.rotation_deg,
-                    rotation_scale: r.rotation_scale,
-                })
-            }),
+            rpe: evaluation.map(|e| Entry::of(&e.rpe, RpeReport::new)),
             outputs,
         }
     }

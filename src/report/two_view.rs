@@ -8,15 +8,19 @@ use vofront_robust::Quality;
 
 use super::{rotation_rows, Entry, Rows3};
 use crate::pipeline::{FeaturePose, FeatureTimings};
+use crate::two_view::stereo::StereoPose;
 use crate::two_view::{Outcome, Recommendation};
 
-/// The JSON object of `vofront two-view`: keys `feature`, `direct_translation`, `direct_se3`,
-/// each present when its estimator ran.
+/// The JSON object of `vofront two-view`: keys `feature`, `feature_stereo`,
+/// `direct_translation`, `direct_se3`, each present when its estimator ran.
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct TwoViewReport {
     /// Feature-based relative pose.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub feature: Option<Entry<FeatureReport>>,
+    /// Metric pose against frame 1's stereo points (`--right1`).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub feature_stereo: Option<Entry<StereoReport>>,
     /// Direct 2D shift.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub direct_translation: Option<Entry<TranslationReport>>,
@@ -34,6 +38,7 @@ impl TwoViewReport {
     pub fn new(outcome: &Outcome) -> Self {
         let ran = [
             outcome.feature.is_some(),
+            outcome.feature_stereo.is_some(),
             outcome.translation.is_some(),
             outcome.se3.is_some(),
         ];
@@ -42,6 +47,10 @@ impl TwoViewReport {
                 .feature
                 .as_ref()
                 .map(|r| Entry::of(r, FeatureReport::new)),
+            feature_stereo: outcome
+                .feature_stereo
+                .as_ref()
+                .map(|r| Entry::of(r, StereoReport::new)),
             direct_translation: outcome
                 .translation
                 .as_ref()
@@ -124,6 +133,49 @@ impl FeatureReport {
             pose: PoseReport::new(&f.estimate, f.matches.len()),
             keypoints: [f.features[0].len(), f.features[1].len()],
             ms: f.timings,
+        }
+    }
+}
+
+/// Metric pose `T_21` of frame 2 located by PnP against frame 1's stereo points
+/// ([`crate::two_view::stereo::stereo_pose`]).
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct StereoReport {
+    /// Rotation `R` of `x2 = R x1 + t`, rows.
+    #[serde(rename = "R")]
+    pub r: Rows3,
+    /// Translation `t`, metres.
+    pub t: [f64; 3],
+    /// ORB keypoints in frame 1's left image and in frame 2.
+    pub keypoints: [usize; 2],
+    /// Frame-1 features with a metric stereo point.
+    pub stereo_points: usize,
+    /// Stereo points matched in frame 2 (PnP's correspondences).
+    pub matches: usize,
+    /// Correspondences consistent with the pose.
+    pub inliers: usize,
+    /// Root-mean-square reprojection error of the inliers, pixels.
+    pub rmse_px: f64,
+    /// Wall-clock time, milliseconds.
+    pub ms: f64,
+    /// Verdict, reasons, support, 6x6 covariance of `(rho, phi)` and sigmas (PnP's record).
+    pub quality: Quality,
+}
+
+impl StereoReport {
+    /// The report of a stereo pose.
+    pub fn new(s: &StereoPose) -> Self {
+        let t = s.pnp.pose.translation.vector;
+        Self {
+            r: rotation_rows(&s.pnp.pose),
+            t: [t.x, t.y, t.z],
+            keypoints: s.keypoints,
+            stereo_points: s.stereo_points,
+            matches: s.matches,
+            inliers: s.pnp.inliers.iter().filter(|&&i| i).count(),
+            rmse_px: s.pnp.rmse_px,
+            ms: s.ms,
+            quality: s.pnp.quality.clone(),
         }
     }
 }

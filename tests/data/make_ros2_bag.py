@@ -6,6 +6,8 @@ The cross-check of vofront's bag reader against bags it did not write itself:
   # KITTI odometry folder: image_0/ as mono8 Image + CameraInfo (P0), stamps from times.txt;
   # --stereo adds image_1/ as /right/image_raw with its CameraInfo (P1, the baseline).
   $PY tests/data/make_ros2_bag.py kitti ../shared/data/kitti_06 /tmp/kitti_06.mcap [--stereo]
+  # A long bag: the clip's frames N times over (stamps continue), as a long recording:
+  $PY tests/data/make_ros2_bag.py kitti ../shared/data/kitti_06 /tmp/long.mcap --repeat 20
   # Image files as CompressedImage png (the files' bytes), a CameraInfo from --camera,
   # frame i at i / fps seconds; --depth: 16-bit depth png files as CompressedImage png on
   # /camera/depth/compressed (read with --depth-topic and --depth-scale).
@@ -13,12 +15,14 @@ The cross-check of vofront's bag reader against bags it did not write itself:
       --camera 517.3,516.5,318.6,255.3 --dist 0.2624,-0.9531,-0.0054,0.0026,1.1633 --fps 30 \
       --depth dep_prev.png dep_curr.png
 
-Messages are CDR little-endian as the writer chooses; chunks are zstd-compressed (its default).
+Messages are CDR little-endian as the writer chooses; chunks are zstd-compressed (its default),
+or `--compression lz4` (as many `ros2 bag record` setups write them) or `none`.
 """
 
 import argparse
 import pathlib
 
+from mcap.writer import CompressionType
 from mcap_ros2.writer import Writer
 from PIL import Image as PilImage
 
@@ -94,19 +98,26 @@ def projection(calib, key):
     raise SystemExit(f"{calib}: no {key}")
 
 
+def writer(f, args):
+    compression = {"zstd": CompressionType.ZSTD, "lz4": CompressionType.LZ4, "none": CompressionType.NONE}
+    return Writer(f, compression=compression[args.compression])
+
+
 def kitti(args):
     root = pathlib.Path(args.folder)
     times = [float(t) for t in (root / "times.txt").read_text().split()]
     p0 = projection(root / "calib.txt", "P0")
     p1 = projection(root / "calib.txt", "P1")
+    period = (times[-1] - times[0]) / max(len(times) - 1, 1)
+    span = times[-1] - times[0] + period
     with open(args.out, "wb") as f:
-        w = Writer(f)
+        w = writer(f, args)
         s_img, s_info = w.register_msgdef("sensor_msgs/msg/Image", IMAGE), w.register_msgdef(
             "sensor_msgs/msg/CameraInfo", CAMERA_INFO
         )
         sides = [("/camera", "image_0", p0)] + ([("/right", "image_1", p1)] if args.stereo else [])
-        for i, t in enumerate(times):
-            ns = round(t * 1e9)
+        for r, (i, t) in ((r, it) for r in range(args.repeat) for it in enumerate(times)):
+            ns = round((t + r * span) * 1e9)
             for ns_name, folder, p in sides:
                 msg, size = mono8(ns, root / folder / f"{i:06d}.png")
                 w.write_message(f"{ns_name}/image_raw", s_img, msg, log_time=ns, publish_time=ns)
@@ -119,7 +130,7 @@ def png(args):
     fx, fy, cx, cy = [float(v) for v in args.camera.split(",")]
     dist = [float(v) for v in args.dist.split(",")] if args.dist else [0.0] * 5
     with open(args.out, "wb") as f:
-        w = Writer(f)
+        w = writer(f, args)
         s_img = w.register_msgdef("sensor_msgs/msg/CompressedImage", COMPRESSED)
         s_info = w.register_msgdef("sensor_msgs/msg/CameraInfo", CAMERA_INFO)
         depths = args.depth or []
@@ -143,6 +154,7 @@ def main():
     k.add_argument("folder")
     k.add_argument("out")
     k.add_argument("--stereo", action="store_true")
+    k.add_argument("--repeat", type=int, default=1, help="write the clip's frames N times over")
     p = sub.add_parser("png")
     p.add_argument("out")
     p.add_argument("images", nargs="+")
@@ -150,6 +162,8 @@ def main():
     p.add_argument("--dist", help="k1,k2,p1,p2,k3 (plumb_bob)")
     p.add_argument("--fps", type=float, default=30.0)
     p.add_argument("--depth", nargs="+", help="16-bit depth png files, one per image")
+    for parser in (k, p):
+        parser.add_argument("--compression", choices=["zstd", "lz4", "none"], default="zstd")
     args = ap.parse_args()
     kitti(args) if args.mode == "kitti" else png(args)
 

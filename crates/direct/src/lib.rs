@@ -7,6 +7,8 @@
 //! - [`rgbd`]: reference frames (grey image + metric depth), undistortion, pixel selection;
 //! - [`se3`]: SE(3) direct image alignment `I_cur(pi(K T_cur_ref pi^-1(p, d))) = a I_ref(p) + b`,
 //!   from a dense RGB-D reference or from given pixels with inverse depths;
+//! - [`mono`]: the parts of the sparse direct monocular tracker: point selection, inverse-depth
+//!   filters, epipolar search;
 //!
 //! Shi-Tomasi corners and pyramidal KLT live in `vofront_image` and are re-exported here.
 //!
@@ -38,6 +40,7 @@
 
 pub mod error;
 mod lm;
+pub mod mono;
 pub mod plane;
 pub mod quality;
 pub mod rgbd;
@@ -51,7 +54,8 @@ pub use plane::Plane;
 pub use plane::{Gradients, Pyramid};
 pub use rgbd::{RgbdFrame, Undistorter};
 pub use se3::{
-    align_se3, photometric_residual_map, InverseDepthPoint, Se3Config, Se3Reference, Se3Result,
+    align_se3, photometric_residual_map, InverseDepthPoint, PixelResidual, Se3Config, Se3Reference,
+    Se3Result,
 };
 pub use translation::{align_translation, TranslationConfig, TranslationResult};
 #[allow(deprecated)]

@@ -37,6 +37,9 @@ pub enum Command {
     /// Absolute and relative trajectory errors of an estimate against ground truth (TUM, KITTI
     /// or EuRoC files, as evo reads them).
     Eval(EvalArgs),
+    /// Run every tracker the dataset allows on the same frames and compare them: ATE, RPE,
+    /// frames posed and lost, time per frame; with `--out-dir` an HTML page with figures.
+    Compare(Box<CompareArgs>),
 }
 
 /// Intrinsics and distortion: a preset, then individual flags override it.
@@ -192,6 +195,14 @@ pub struct TwoViewArgs {
     /// Depth units per metre in `--depth1`.
     #[arg(long, default_value_t = 5000.0, allow_negative_numbers = true)]
     pub depth_scale: f64,
+    /// Right image of frame 1, rectified with `IMG1` (needs `--baseline`): adds the metric
+    /// `feature_stereo` pose (frame 2 located by PnP against frame 1's stereo points) and, without
+    /// `--depth1`, the direct SE(3) alignment on frame 1's stereo depth.
+    #[arg(long, value_name = "PNG", requires = "baseline")]
+    pub right1: Option<PathBuf>,
+    /// Stereo baseline of `--right1`, metres (the right camera at `x = +baseline`).
+    #[arg(long, value_name = "M", requires = "right1")]
+    pub baseline: Option<f64>,
     /// Which estimators to run.
     #[arg(long, value_parser = two_view_method(), default_value_t = Method::All)]
     pub method: Method,
@@ -471,4 +482,54 @@ impl TopicArgs {
             || self.depth_topic.is_some()
             || self.camera_info_topic.is_some()
     }
+}
+
+/// Flags of `vofront compare`.
+#[derive(Debug, Args)]
+#[command(
+    after_help = "Without --methods, every tracker the dataset allows runs: the RGB-D ones \
+with depth, the stereo ones with a stereo rig, the monocular ones always. With --out-dir each \
+tracker's TUM trajectory is written as it is tracked, and report.json and report.html after \
+each tracker, so an interrupted comparison keeps what finished. Exit codes: 0 done, 1 no \
+tracker ran, 2 bad command line, 130/143 interrupted."
+)]
+pub struct CompareArgs {
+    /// Dataset folder (TUM RGB-D, KITTI, EuRoC or a plain folder of images) or a ROS 2 bag.
+    pub dataset: PathBuf,
+    /// Trackers to run, comma-separated (a tracker the dataset cannot run is listed with its
+    /// error) [default: every one the dataset allows].
+    #[arg(
+        long,
+        value_enum,
+        value_delimiter = ',',
+        num_args = 1,
+        value_name = "a,b"
+    )]
+    pub methods: Option<Vec<TrackerKind>>,
+    /// Camera of the monocular and RGB-D trackers; without flags: the dataset's, else
+    /// tum-ros (the stereo trackers use the dataset's rig).
+    #[command(flatten)]
+    pub camera: CameraArgs,
+    /// Depth units per metre, overriding the dataset's (TUM: 5000).
+    #[arg(long, value_name = "UNITS", allow_negative_numbers = true)]
+    pub depth_scale: Option<f64>,
+    /// Frame rate (Hz) of a plain folder of images [default: times from the file names].
+    #[arg(long, value_name = "HZ", allow_negative_numbers = true)]
+    pub fps: Option<f64>,
+    /// The bag topics of `dataset` when it is a ROS 2 bag (`.mcap`).
+    #[command(flatten)]
+    pub topics: TopicArgs,
+    /// ORB feature budget per frame of the feature trackers [default: each tracker's].
+    #[arg(long, value_name = "N")]
+    pub features: Option<usize>,
+    /// Track only the first N frames.
+    #[arg(long, value_name = "N")]
+    pub max_frames: Option<usize>,
+    /// Print the report as one JSON object instead of the table.
+    #[arg(long)]
+    pub json: bool,
+    /// Write report.html (figures inline), report.json and each tracker's TUM trajectory
+    /// (`<method>.txt`) here (`--out-dir` alone: `vofront-out/compare`).
+    #[arg(long, value_name = "DIR", num_args = 0..=1, default_missing_value = "vofront-out/compare")]
+    pub out_dir: Option<PathBuf>,
 }

@@ -54,6 +54,7 @@ pub fn run() -> Result<(), String> {
         camera,
         method: Method::All,
         features: 2000,
+        stereo: None,
     };
     outln!(
         "synthetic room, 640x480, camera moved {:.0} mm and turned {:.2} deg between the frames",

@@ -27,6 +27,7 @@ macro_rules! out {
 }
 
 mod args;
+mod compare_cmd;
 mod demo;
 mod eval_cmd;
 mod odometry_cmd;
@@ -82,6 +83,11 @@ fn main() -> ExitCode {
             Err(e) => Err(e),
         },
         Some(Command::Eval(a)) => eval_cmd::run(a),
+        Some(Command::Compare(a)) => match compare_cmd::run(a) {
+            Ok(0) => Ok(()),
+            Ok(code) => return ExitCode::from(code),
+            Err(e) => Err(e),
+        },
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

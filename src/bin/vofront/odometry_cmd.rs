@@ -28,7 +28,7 @@ use vofront::odometry::sink::KittiSink;
 use vofront::odometry::Tracker;
 use vofront::report::odometry::{OdometryReport, Outputs};
 
-use crate::args::{OdometryArgs, OutFormat};
+use crate::args::{OdometryArgs, OutFormat, TopicArgs};
 
 /// Exit code when tracking was lost for good (partial results are still written).
 pub const EXIT_LOST: u8 = 3;
@@ -57,7 +57,7 @@ fn describe_camera(camera: &Camera) -> String {
 }
 
 /// A progress bar over `total` frames on stderr, when stderr is a terminal.
-fn progress_bar(total: usize) -> Option<ProgressBar> {
+pub fn progress_bar(total: usize) -> Option<ProgressBar> {
     std::io::stderr().is_terminal().then(|| {
         let bar = ProgressBar::new(total as u64);
         bar.set_style(
@@ -184,7 +184,7 @@ fn kitti_times_path(out: &Path) -> PathBuf {
 }
 
 /// Creates `path` for writing (and its missing parent folders), before any work is done.
-fn create_output(path: &Path) -> Result<BufWriter<File>, String> {
+pub fn create_output(path: &Path) -> Result<BufWriter<File>, String> {
     let fail = |e: std::io::Error| format!("{}: cannot write: {e}", path.display());
     if let Some(parent) = path.parent().filter(|p| !p.as_os_str().is_empty()) {
         std::fs::create_dir_all(parent).map_err(fail)?;
@@ -209,7 +209,7 @@ fn rerun_sink(args: &OdometryArgs, session: &Session) -> Result<Option<RerunSink
 
 /// The stop flag raised by the first SIGINT or SIGTERM, and the exit code it asks for
 /// (0 until a signal arrives). A second signal exits at once with that signal's code.
-fn install_signal_handlers() -> Result<(Arc<AtomicBool>, Arc<AtomicUsize>), String> {
+pub fn install_signal_handlers() -> Result<(Arc<AtomicBool>, Arc<AtomicUsize>), String> {
     use signal_hook::consts::{SIGINT, SIGTERM};
     use signal_hook::flag;
     let stop = Arc::new(AtomicBool::new(false));
@@ -223,33 +223,45 @@ fn install_signal_handlers() -> Result<(Arc<AtomicBool>, Arc<AtomicUsize>), Stri
     Ok((stop, code))
 }
 
-/// Runs `vofront odometry`; the exit code: 0, [`EXIT_LOST`], [`EXIT_SIGINT`] or
-/// [`EXIT_SIGTERM`].
-pub fn run(args: &OdometryArgs) -> Result<u8, String> {
-    if let Some(fps) = args.fps {
+/// Opens the dataset folder or bag at `path` with the `--fps`, topic and `--depth-scale`
+/// flags (each checked), printing the dataset's notes on stderr.
+pub fn open_dataset(
+    path: &Path,
+    fps: Option<f64>,
+    topics: &TopicArgs,
+    depth_scale: Option<f64>,
+) -> Result<Dataset, String> {
+    if let Some(fps) = fps {
         if !(fps.is_finite() && fps > 0.0) {
             return Err(format!("--fps {fps}: must be a positive number"));
         }
     }
     let config = DatasetConfig {
-        fps: args.fps,
+        fps,
         ..DatasetConfig::default()
     };
-    let mut dataset = if args.dataset.is_file() || args.topics.is_given() {
-        Dataset::open_bag(&args.dataset, &config, &args.topics.topics())
+    let mut dataset = if path.is_file() || topics.is_given() {
+        Dataset::open_bag(path, &config, &topics.topics())
     } else {
-        Dataset::open_with(&args.dataset, &config)
+        Dataset::open_with(path, &config)
     }
     .map_err(|e| e.to_string())?;
     for note in dataset.notes() {
         eprintln!("note: {note}");
     }
-    if let Some(scale) = args.depth_scale {
+    if let Some(scale) = depth_scale {
         if !(scale.is_finite() && scale > 0.0) {
             return Err(format!("--depth-scale {scale}: must be a positive number"));
         }
         dataset.depth_scale = Some(scale);
     }
+    Ok(dataset)
+}
+
+/// Runs `vofront odometry`; the exit code: 0, [`EXIT_LOST`], [`EXIT_SIGINT`] or
+/// [`EXIT_SIGTERM`].
+pub fn run(args: &OdometryArgs) -> Result<u8, String> {
+    let dataset = open_dataset(&args.dataset, args.fps, &args.topics, args.depth_scale)?;
     let given = if args.camera.is_given() {
         Some((args.camera.camera()?, "command-line flags"))
     } else {

@@ -11,6 +11,7 @@ use vofront::image::Image;
 use vofront::input::{load_depth, load_gray};
 use vofront::report::two_view::to_json;
 use vofront::robust::Quality;
+use vofront::two_view::stereo::StereoFirst;
 pub use vofront::two_view::{estimate, Inputs, Outcome, Status};
 
 use crate::args::TwoViewArgs;
@@ -82,6 +83,26 @@ pub fn print_text(outcome: &Outcome) {
                 );
             }
             Err(e) => outln!("feature     failed: {e}"),
+        }
+    }
+    if let Some(r) = &outcome.feature_stereo {
+        match r {
+            Ok(s) => {
+                let (rot, t) = (
+                    s.pnp.pose.rotation.scaled_axis().map(f64::to_degrees),
+                    s.pnp.pose.translation.vector,
+                );
+                let inliers = s.pnp.inliers.iter().filter(|&&i| i).count();
+                outln!(
+                    "stereo      {} + {} keypoints, {} with a stereo point, {} matched in frame 2, {} PnP inliers, rmse {:.2} px",
+                    s.keypoints[0], s.keypoints[1], s.stereo_points, s.matches, inliers, s.pnp.rmse_px
+                );
+                outln!("            rotation vector {:+.3} {:+.3} {:+.3} deg, translation {:+.4} {:+.4} {:+.4} m",
+                    rot.x, rot.y, rot.z, t.x, t.y, t.z);
+                outln!("            {}", verdict_line(&s.pnp.quality));
+                outln!("            {:.1} ms", s.ms);
+            }
+            Err(e) => outln!("stereo      failed: {e}"),
         }
     }
     if let Some(r) = &outcome.translation {
@@ -231,6 +252,13 @@ pub fn run(args: &TwoViewArgs) -> Result<Status, String> {
         Some(p) => Some(load_depth(p, args.depth_scale).map_err(|e| e.to_string())?),
         None => None,
     };
+    let stereo = match (&args.right1, args.baseline) {
+        (Some(p), Some(baseline)) => Some(StereoFirst {
+            right1: load_gray(p).map_err(|e| e.to_string())?,
+            baseline,
+        }),
+        _ => None,
+    };
     let inputs = Inputs {
         img1,
         img2,
@@ -238,6 +266,7 @@ pub fn run(args: &TwoViewArgs) -> Result<Status, String> {
         camera,
         method: args.method,
         features: args.features,
+        stereo,
     };
     let outcome = estimate(&inputs);
     if args.json {

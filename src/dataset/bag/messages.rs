@@ -14,6 +14,9 @@ use super::cdr::{CdrError, CdrReader};
 pub const IMAGE: &str = "sensor_msgs/msg/Image";
 /// Schema name of a compressed (png, jpeg) image.
 pub const COMPRESSED_IMAGE: &str = "sensor_msgs/msg/CompressedImage";
+/// The marker of image_transport's `compressedDepth` format in a `CompressedImage`'s
+/// `format` (`16UC1; compressedDepth png`, `32FC1; compressedDepth png`).
+pub const COMPRESSED_DEPTH: &str = "compressedDepth";
 /// Schema name of a camera calibration.
 pub const CAMERA_INFO: &str = "sensor_msgs/msg/CameraInfo";
 
@@ -57,6 +60,17 @@ pub enum MessageError {
         /// The decoder's error.
         source: Box<image::ImageError>,
     },
+    /// A `compressedDepth` payload that is not a 12-byte header and a 16-bit PNG.
+    #[error("compressed depth ('{format}'): {reason}")]
+    CompressedDepth {
+        /// The message's `format`.
+        format: String,
+        /// What is wrong.
+        reason: String,
+    },
+    /// The message's bytes cannot be read from the bag (its chunk is damaged or cut off).
+    #[error("cannot be read from the bag: {0}")]
+    Unreadable(String),
     /// The calibration cannot be represented by a vofront camera.
     #[error("camera info: {0}")]
     Calibration(String),
@@ -92,8 +106,8 @@ enum Pixels {
 const INTENSITY: &str =
     "mono8, mono16, rgb8, bgr8, rgba8, bgra8 (Image); png, jpeg (CompressedImage)";
 /// The encodings of a depth stream.
-const DEPTH: &str =
-    "16UC1 (mm, or the depth scale), 32FC1 (m), mono16 (Image); 16-bit png (CompressedImage)";
+const DEPTH: &str = "16UC1 (mm, or the depth scale), 32FC1 (m), mono16 (Image); 16-bit png, \
+     16UC1 and 32FC1 compressedDepth png (CompressedImage)";
 
 /// Decodes an `Image` (`compressed == false`) or `CompressedImage` message to 8-bit grey:
 /// colour with the `image` crate's luma weights and 16-bit by its `u16 -> u8` conversion, as
@@ -119,6 +133,13 @@ pub fn depth(bytes: &[u8], compressed: bool, scale: f64) -> Result<Image<f32>, M
     }
 }
 
+/// The `format` of a `CompressedImage` message.
+pub fn compressed_format(bytes: &[u8]) -> Result<String, CdrError> {
+    let mut r = CdrReader::new(bytes)?;
+    header_stamp(&mut r)?;
+    r.string().map(str::to_owned)
+}
+
 /// The encoding of an `Image` message (`None` for a `CompressedImage`).
 pub fn image_encoding(bytes: &[u8]) -> Result<String, CdrError> {
     let mut r = CdrReader::new(bytes)?;
@@ -142,8 +163,11 @@ fn pixels(bytes: &[u8], compressed: bool, want_depth: bool) -> Result<Pixels, Me
     if compressed {
         let format = r.string()?.to_owned();
         let data = r.bytes()?;
-        if format.contains("compressedDepth") {
-            return Err(encoding_error(&format, "this reader", DEPTH));
+        if format.contains(COMPRESSED_DEPTH) {
+            if !want_depth {
+                return Err(encoding_error(&format, "an intensity image", INTENSITY));
+            }
+            return compressed_depth(&format, data);
         }
         return image::load_from_memory(data)
             .map(Pixels::Dynamic)
@@ -248,6 +272,55 @@ fn pixels(bytes: &[u8], compressed: bool, want_depth: bool) -> Result<Pixels, Me
             ))
         }
     })
+}
+
+/// Decodes image_transport's `compressedDepth` payload: a 12-byte header (`int32` format,
+/// `float32 depthQuantA`, `float32 depthQuantB`, little-endian) and a 16-bit PNG. For
+/// `16UC1` the PNG holds the raw depth units (as an uncompressed `16UC1` image); for `32FC1`
+/// the quantised inverse depth `q = A / z + B`, so `z = A / (q - B)` metres (`q = 0`: no depth).
+fn compressed_depth(format: &str, data: &[u8]) -> Result<Pixels, MessageError> {
+    let bad = |reason: String| MessageError::CompressedDepth {
+        format: format.to_owned(),
+        reason,
+    };
+    let (head, png) = data.split_at_checked(12).ok_or_else(|| {
+        bad(format!(
+            "{} bytes, shorter than the 12-byte header",
+            data.len()
+        ))
+    })?;
+    let quant =
+        |at: usize| f32::from_le_bytes([head[at], head[at + 1], head[at + 2], head[at + 3]]);
+    let decoded =
+        image::load_from_memory_with_format(png, image::ImageFormat::Png).map_err(|source| {
+            MessageError::Compressed {
+                format: format.to_owned(),
+                source: Box::new(source),
+            }
+        })?;
+    let DynamicImage::ImageLuma16(q) = decoded else {
+        return Err(bad("the PNG is not 16-bit grey".into()));
+    };
+    if format.starts_with("32FC1") {
+        let (a, b) = (quant(4), quant(8));
+        let (w, h) = (q.width() as usize, q.height() as usize);
+        let metres = q
+            .into_raw()
+            .into_iter()
+            .map(|v| {
+                let z = a / (f32::from(v) - b);
+                if v != 0 && z.is_finite() && z > 0.0 {
+                    z
+                } else {
+                    0.0
+                }
+            })
+            .collect();
+        return Image::new(w, h, metres)
+            .map(Pixels::Metres)
+            .map_err(|e| bad(e.to_string()));
+    }
+    Ok(Pixels::Dynamic(DynamicImage::ImageLuma16(q)))
 }
 
 /// A decoded `CameraInfo`: image size and the camera it describes.

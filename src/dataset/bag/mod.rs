@@ -1,17 +1,20 @@
 //! ROS 2 bags (`.mcap`, feature `mcap`) as datasets.
 //!
-//! [`open`] streams the bag's records from the start (the summary section is not needed, so
-//! a bag cut off mid-file yields the frames before the cut, with a note) and keeps the CDR
-//! bytes of the chosen topics in memory; [`Dataset::load`] decodes one frame's messages
-//! ([`messages`]: `sensor_msgs/msg/Image` `mono8`, `mono16`, `rgb8`, `bgr8`, `rgba8`, `bgra8`
-//! to grey, `16UC1` (depth units, millimetres by default) and `32FC1` (metres) to depth;
-//! `CompressedImage` png and jpeg).
+//! [`open`] makes one pass over the bag ([`index`]: through the summary's chunk indexes, or,
+//! without a summary, as in a bag cut off mid-file, through the records from the start, so that
+//! the frames before the cut are kept, with a note) and keeps only where each message of the
+//! chosen topics is; [`Dataset::load`] reads one frame's messages ([`chunks::ChunkReader`]: seek,
+//! decompress that chunk, zstd or lz4, a cache of at most [`chunks::CACHE_BYTES`]) and decodes
+//! them ([`messages`]: `sensor_msgs/msg/Image` `mono8`, `mono16`, `rgb8`, `bgr8`, `rgba8`,
+//! `bgra8` to grey, `16UC1` (depth units, millimetres by default) and `32FC1` (metres) to depth;
+//! `CompressedImage` png and jpeg, and `compressedDepth` png as depth).
 //!
 //! Topics ([`BagTopics`]): the image topic is the one `Image` or `CompressedImage` topic whose
-//! first message is not a depth encoding (nor named as the depth or right topic); the depth topic the one `16UC1`/`32FC1` topic (none
-//! when there is none); the right topic only when named; the calibration the `CameraInfo`
-//! beside the image topic (`/ns/image_raw` -> `/ns/camera_info`), else the only one. Several
-//! candidates are an error that lists them ([`BagError::Ambiguous`]).
+//! first message is not a depth encoding (nor named as the depth or right topic); the depth
+//! topic the one `16UC1`/`32FC1` or `compressedDepth` topic (none when there is none); the
+//! right topic only when named; the calibration the `CameraInfo` beside the image topic
+//! (`/ns/image_raw` -> `/ns/camera_info`), else the only one. Several candidates are an error
+//! that lists them ([`BagError::Ambiguous`]).
 //!
 //! Times are the header stamps (the log time when a stamp is zero or unreadable). Depth and
 //! right images are paired with the left ones by stamp, nearest within
@@ -21,15 +24,17 @@
 //! baseline (`P[0][3] = -fx * b`) makes a stereo rig of the two rectified projections `P`.
 
 pub mod cdr;
+pub mod chunks;
+pub mod index;
 pub mod messages;
 pub mod topics;
 pub mod write;
 
-use std::collections::HashMap;
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
 
-use mcap::read::{Options, RawMessageStream};
+use chunks::{ChunkReader, MessageBytes};
+use index::Topic;
 use nalgebra::Isometry3;
 use thiserror::Error;
 use vofront_core::camera::{Camera, Pinhole};
@@ -51,6 +56,14 @@ pub enum BagError {
         path: PathBuf,
         /// What is wrong.
         message: String,
+    },
+    /// Chunks compressed in a way this reader cannot decompress.
+    #[error("{path}: chunks compressed with '{compression}', which vofront cannot read (it reads {}); re-compress the bag, e.g. `mcap compress --compression zstd IN.mcap -o OUT.mcap` or `ros2 bag convert` with zstd", chunks::SUPPORTED)]
+    Compression {
+        /// The bag.
+        path: PathBuf,
+        /// The compression named by the chunk record.
+        compression: String,
     },
     /// No topic of the stream's type.
     #[error("{path}: no {stream} topic (topics of that type: [{}])", topics.join(", "))]
@@ -98,20 +111,6 @@ pub enum BagError {
     },
 }
 
-/// One kept message: its index on the topic, stamp (s) and CDR bytes.
-struct Stored {
-    index: usize,
-    stamp: f64,
-    data: Vec<u8>,
-}
-
-/// A topic's kept messages, in stamp order.
-struct Topic {
-    name: String,
-    schema: String,
-    messages: Vec<Stored>,
-}
-
 impl Topic {
     fn compressed(&self) -> bool {
         self.schema == messages::COMPRESSED_IMAGE
@@ -121,6 +120,8 @@ impl Topic {
 /// The messages of the chosen topics behind a bag [`Dataset`]'s frames.
 pub struct BagFrames {
     path: PathBuf,
+    reader: ChunkReader,
+    indexed: bool,
     image: Topic,
     right: Option<Topic>,
     depth: Option<Topic>,
@@ -147,6 +148,18 @@ impl BagFrames {
         &self.notes
     }
 
+    /// True when the messages were found through the summary's chunk indexes, false when by
+    /// reading the records from the start (no summary: a bag cut off, or written without one).
+    pub fn indexed(&self) -> bool {
+        self.indexed
+    }
+
+    /// The decompressed chunks held in the cache now and their bytes (at most
+    /// [`chunks::CACHE_BYTES`] unless one chunk alone is larger).
+    pub fn cached(&self) -> (usize, usize) {
+        self.reader.cached()
+    }
+
     fn error(&self, topic: &Topic, at: usize, source: MessageError) -> DatasetError {
         BagError::Message {
             path: self.path.clone(),
@@ -155,6 +168,13 @@ impl BagFrames {
             source,
         }
         .into()
+    }
+
+    /// The bytes of message `at` of `topic`.
+    fn bytes(&self, topic: &Topic, at: usize) -> Result<MessageBytes, DatasetError> {
+        self.reader
+            .message(&topic.messages[at].place)
+            .map_err(|e| self.error(topic, at, MessageError::Unreadable(e)))
     }
 
     /// Frame `index` (in range): grey image, depth in metres (`raw / depth_scale` for 16-bit),
@@ -168,11 +188,11 @@ impl BagFrames {
     ) -> Result<Frame, DatasetError> {
         let (i, r, d) = self.slots[index];
         let image = &self.image;
-        let left = messages::intensity(&image.messages[i].data, image.compressed())
+        let left = messages::intensity(self.bytes(image, i)?.bytes(), image.compressed())
             .map_err(|e| self.error(image, i, e))?;
         let depth = match (&self.depth, d) {
             (Some(t), Some(d)) => Some(
-                messages::depth(&t.messages[d].data, t.compressed(), depth_scale)
+                messages::depth(self.bytes(t, d)?.bytes(), t.compressed(), depth_scale)
                     .map_err(|e| self.error(t, d, e))?,
             ),
             _ => None,
@@ -181,7 +201,7 @@ impl BagFrames {
             .map_err(|source| DatasetError::Frame { index, source })?;
         match (&self.right, r, stereo) {
             (Some(t), Some(r), true) => {
-                let right = messages::intensity(&t.messages[r].data, t.compressed())
+                let right = messages::intensity(self.bytes(t, r)?.bytes(), t.compressed())
                     .map_err(|e| self.error(t, r, e))?;
                 frame
                     .with_right(right)
@@ -193,81 +213,27 @@ impl BagFrames {
     }
 }
 
-/// Reads every message of the image and calibration types, per topic, until the end or the
-/// first damaged record (whose error becomes the returned note).
-fn read_topics(path: &Path) -> Result<(HashMap<String, Topic>, Option<String>), BagError> {
-    let read_error = |message: String| BagError::Read {
-        path: path.to_path_buf(),
-        message,
-    };
-    let bytes = std::fs::read(path).map_err(|e| read_error(e.to_string()))?;
-    if !bytes.starts_with(mcap::MAGIC) {
-        return Err(read_error("no MCAP magic at the start".into()));
-    }
-    let mut stream = RawMessageStream::new_with_options(&bytes, Options::IgnoreEndMagic.into())
-        .map_err(|e| read_error(e.to_string()))?;
-    let mut topics: HashMap<String, Topic> = HashMap::new();
-    let wanted = [
-        messages::IMAGE,
-        messages::COMPRESSED_IMAGE,
-        messages::CAMERA_INFO,
-    ];
-    while let Some(item) = stream.next() {
-        let raw = match item {
-            Ok(raw) => raw,
-            Err(e) => return Ok((topics, Some(e.to_string()))),
-        };
-        let Some(channel) = stream.get_channel(raw.header.channel_id) else {
-            continue;
-        };
-        let Some(schema) = channel.schema.as_ref().map(|s| s.name.as_str()) else {
-            continue;
-        };
-        if channel.message_encoding != "cdr" || !wanted.contains(&schema) {
-            continue;
-        }
-        let topic = topics
-            .entry(channel.topic.clone())
-            .or_insert_with(|| Topic {
-                name: channel.topic.clone(),
-                schema: schema.to_owned(),
-                messages: Vec::new(),
-            });
-        let stamp = messages::stamp(&raw.data)
-            .ok()
-            .filter(|&t| t != 0.0)
-            .unwrap_or(raw.header.log_time as f64 / 1e9);
-        topic.messages.push(Stored {
-            index: topic.messages.len(),
-            stamp,
-            data: raw.data.into_owned(),
-        });
-    }
-    Ok((topics, None))
-}
-
-/// True for a depth encoding (`16UC1`, `32FC1`) of a topic's first message.
+/// True when a topic's first message is depth: an `Image` of encoding `16UC1` or `32FC1`, or
+/// a `CompressedImage` of a `compressedDepth` format.
 fn is_depth(topic: &Topic) -> bool {
+    if topic.compressed() {
+        return messages::compressed_format(&topic.first)
+            .is_ok_and(|f| f.contains(messages::COMPRESSED_DEPTH));
+    }
     topic.schema == messages::IMAGE
-        && topic.messages.first().is_some_and(|m| {
-            messages::image_encoding(&m.data).is_ok_and(|e| e == "16UC1" || e == "32FC1")
-        })
+        && messages::image_encoding(&topic.first).is_ok_and(|e| e == "16UC1" || e == "32FC1")
 }
 
 /// The camera of a calibration topic's first message.
 fn calibration(path: &Path, topic: &Topic) -> Result<Option<messages::CameraInfo>, BagError> {
-    topic
-        .messages
-        .first()
-        .map(|m| {
-            messages::camera_info(&m.data).map_err(|source| BagError::Message {
-                path: path.to_path_buf(),
-                topic: topic.name.clone(),
-                index: m.index,
-                source,
-            })
+    messages::camera_info(&topic.first)
+        .map(Some)
+        .map_err(|source| BagError::Message {
+            path: path.to_path_buf(),
+            topic: topic.name.clone(),
+            index: 0,
+            source,
         })
-        .transpose()
 }
 
 /// Opens the bag at `path` (see the module documentation).
@@ -276,14 +242,16 @@ pub fn open(
     config: &DatasetConfig,
     choice: &BagTopics,
 ) -> Result<Dataset, DatasetError> {
-    let (mut all, cut) = read_topics(path)?;
-    let mut notes = Vec::new();
-    if let Some(cut) = cut {
-        notes.push(format!(
-            "{}: the bag ends early or is damaged ({cut}); the messages before it are read",
-            path.display()
-        ));
-    }
+    let index::Scan {
+        chunks,
+        topics: mut all,
+        mut notes,
+        indexed,
+    } = index::scan(path)?;
+    let file = std::fs::File::open(path).map_err(|e| BagError::Read {
+        path: path.to_path_buf(),
+        message: e.to_string(),
+    })?;
     let mut names: Vec<&Topic> = all.values().collect();
     names.sort_by(|a, b| a.name.cmp(&b.name));
     let of = |f: &dyn Fn(&Topic) -> bool| -> Vec<String> {
@@ -449,6 +417,8 @@ pub fn open(
         rig,
         bag: Some(Arc::new(BagFrames {
             path: path.to_path_buf(),
+            reader: ChunkReader::new(file, chunks),
+            indexed,
             image,
             right,
             depth,

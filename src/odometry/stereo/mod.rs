@@ -47,6 +47,7 @@ use super::keyframe::KeyframeView;
 use super::local_map::{LocalMap, MapRules, MapSearch, WIDE_WINDOW_FACTOR};
 use super::lost::LostMap;
 use super::mono::KEYPOINT_QUANTISATION_PX;
+use super::observe::FrameDetails;
 use super::{ms_since, FrameEstimate, FrameQuality, Located, PointLocator, TrackStatus, Tracker};
 use crate::dataset::Frame;
 use crate::error::VoError;
@@ -124,6 +125,8 @@ pub struct StereoTracker {
     started: bool,
     /// Frames given to `track` before the current one.
     frame: usize,
+    /// The last frame's details, kept while an observer asks ([`Tracker::keep_details`]).
+    details: Option<FrameDetails>,
 }
 
 impl StereoTracker {
@@ -145,6 +148,7 @@ impl StereoTracker {
             lost: LostMap::default(),
             started: false,
             frame: 0,
+            details: None,
         })
     }
 
@@ -181,6 +185,9 @@ impl StereoTracker {
             Ok(v) => v,
             Err(e) => return FrameEstimate::lost(predicted, e.to_string(), start),
         };
+        if let Some(details) = &mut self.details {
+            details.detected(&view.features);
+        }
         if let Some((map, reference)) = self.map.take() {
             return self.track_map(map, reference, view, &camera, predicted, start);
         }
@@ -284,6 +291,9 @@ impl StereoTracker {
                 return FrameEstimate::lost(predicted, why.to_string(), start);
             }
         };
+        if let Some(details) = &mut self.details {
+            details.mark(&matches, &fit.inliers);
+        }
         let t_wc = fit.pose.inverse();
         let tracked = map.keep_inliers(&matches, &world, &fit.inliers, &ids);
         let Some(last) = map.last() else {
@@ -376,6 +386,9 @@ impl StereoTracker {
 
 impl Tracker for StereoTracker {
     fn track(&mut self, frame: &Frame) -> FrameEstimate {
+        if let Some(details) = &mut self.details {
+            details.clear();
+        }
         let predicted = self.coast.predict();
         let mut estimate = self.track_from(frame, predicted);
         self.frame += 1;
@@ -385,10 +398,27 @@ impl Tracker for StereoTracker {
         if let Some(r) = &self.rectified {
             estimate.pose_wc = r.t_raw_rect * estimate.pose_wc * r.t_raw_rect.inverse();
         }
+        if let (Some(details), Some(r)) = (&mut self.details, &self.rectified) {
+            details.map_keypoints(|px| r.raw_pixel(px));
+            if let Some((map, _)) = &self.map {
+                let points = map.world_points().map(|p| r.t_raw_rect * p);
+                details.map_points.extend(points);
+            }
+        }
         estimate
     }
 
     fn needs_right(&self) -> bool {
         true
+    }
+
+    /// Left keypoints (rectified, drawn in the raw left image) as PnP inliers, outliers or
+    /// unmatched, and the local map's points.
+    fn keep_details(&mut self, keep: bool) {
+        self.details = keep.then(FrameDetails::default);
+    }
+
+    fn details(&self) -> Option<&FrameDetails> {
+        self.details.as_ref()
     }
 }

@@ -1,7 +1,7 @@
 //! The stereo front of a frame: both images in the rectified geometry, ORB on each, the left
 //! features matched along their rows, and the metric point of every matched left feature.
 
-use nalgebra::{Isometry3, Point3, UnitQuaternion};
+use nalgebra::{Isometry3, Point3, UnitQuaternion, Vector2, Vector3};
 use thiserror::Error;
 use vofront_core::rectify::{RectifyError, StereoRectification};
 use vofront_core::rig::Rig;
@@ -75,6 +75,8 @@ pub(crate) struct Rectified {
     /// The remaps of the left and right images; `None` for a rig rectified already.
     pub(crate) remaps: Option<[Remap; 2]>,
     pub(crate) size: (usize, usize),
+    /// The raw left camera.
+    raw: Camera,
 }
 
 /// ORB features of `image`.
@@ -115,7 +117,23 @@ impl Rectified {
             t_raw_rect: Isometry3::from_parts(Default::default(), rotation.inverse()),
             remaps,
             size: (width, height),
+            raw: *left,
         })
+    }
+
+    /// Where pixel `px` of the rectified left image is in the raw left image:
+    /// `pi_raw(R_raw_rect K_rect^-1 (u, v, 1))`, the same pixel for a rig rectified already;
+    /// `None` when the ray has no raw pixel.
+    pub fn raw_pixel(&self, px: [f32; 2]) -> Option<[f32; 2]> {
+        if self.remaps.is_none() {
+            return Some(px);
+        }
+        let x = self
+            .camera
+            .pinhole
+            .to_normalized(&Vector2::new(f64::from(px[0]), f64::from(px[1])));
+        let ray = self.t_raw_rect.rotation * Vector3::new(x.x, x.y, 1.0);
+        self.raw.project(&ray).map(|u| [u.x as f32, u.y as f32])
     }
 
     /// The frame's `left` and `right` images in the rectified geometry (bilinear, black where

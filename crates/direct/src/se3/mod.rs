@@ -31,10 +31,12 @@ use crate::quality::{intensity_variance, se3_quality, Se3Stats};
 use crate::rgbd::{pinhole_image, RgbdFrame, Undistorter};
 
 mod level;
+mod residuals;
 mod select;
 mod sparse;
 
 use level::{Se3Level, Se3State};
+pub use residuals::PixelResidual;
 use select::{level_intrinsics, select_level, RefLevel};
 pub use sparse::InverseDepthPoint;
 

@@ -1,7 +1,10 @@
 //! Feature and direct estimates of one frame pair: [`estimate`] runs the estimators an
 //! [`Inputs`] asks for, each failing on its own, and [`Outcome::recommend`] says which estimate
 //! to trust. The public report of an outcome (the JSON of `vofront two-view`) is
-//! [`crate::report::two_view::TwoViewReport`].
+//! [`crate::report::two_view::TwoViewReport`]. With frame 1's right image ([`Inputs::stereo`])
+//! the pair's estimates are metric ([`stereo`]).
+
+pub mod stereo;
 
 use std::fmt;
 use std::str::FromStr;
@@ -22,6 +25,7 @@ use crate::error::VoError;
 use crate::pipeline::{FeaturePose, TwoViewEstimator};
 use crate::report::two_view::TwoViewReport;
 use crate::timing::ms_since;
+use stereo::{stereo_depth, stereo_pose, StereoFirst, StereoPose};
 
 /// Which estimators [`estimate`] runs (`vofront two-view --method`, Python
 /// `two_view(method=...)`), parsed from and shown as [`Method::name`].
@@ -86,6 +90,10 @@ pub struct Inputs {
     pub method: Method,
     /// ORB budget per image.
     pub features: usize,
+    /// Frame 1's right image of a rectified stereo pair with its baseline: the feature
+    /// estimators add the metric `feature_stereo` pose, and the direct SE(3) alignment runs
+    /// with frame 1's stereo depth when `depth1` is `None`.
+    pub stereo: Option<StereoFirst>,
 }
 
 /// A direct estimate with its wall-clock time in milliseconds.
@@ -108,6 +116,9 @@ pub enum DirectPairError {
     /// The aligner failed.
     #[error(transparent)]
     Direct(#[from] DirectError),
+    /// Frame 1's stereo depth could not be computed ([`stereo::stereo_depth`]).
+    #[error("stereo depth: {0}")]
+    StereoDepth(String),
 }
 
 /// Each estimator's result or error; `None` where it did not run. The direct results carry
@@ -115,6 +126,8 @@ pub enum DirectPairError {
 pub struct Outcome {
     /// Feature-based relative pose.
     pub feature: Option<Result<FeaturePose, VoError>>,
+    /// Metric pose of frame 2 against frame 1's stereo points (with [`Inputs::stereo`]).
+    pub feature_stereo: Option<Result<StereoPose, VoError>>,
     /// Direct 2D translation.
     pub translation: Option<Result<Timed<TranslationResult>, DirectPairError>>,
     /// Direct SE(3) alignment with the depth of frame 1.
@@ -148,15 +161,20 @@ impl Outcome {
     /// True when at least one estimator produced an estimate.
     pub fn any_estimate(&self) -> bool {
         matches!(self.feature, Some(Ok(_)))
+            || matches!(self.feature_stereo, Some(Ok(_)))
             || matches!(self.translation, Some(Ok(_)))
             || matches!(self.se3, Some(Ok(_)))
     }
 
     /// The verdict of each estimate that exists, in the order of preference of
-    /// [`Outcome::recommend`]: `direct_se3` (metric 6-DoF), `feature` (6-DoF, unit
-    /// translation), `direct_translation` (an image shift only).
+    /// [`Outcome::recommend`]: `feature_stereo` (metric 6-DoF from stereo points and PnP),
+    /// `direct_se3` (metric 6-DoF), `feature` (6-DoF, unit translation), `direct_translation`
+    /// (an image shift only).
     pub fn verdicts(&self) -> Vec<(&'static str, &Quality)> {
         let mut out = Vec::new();
+        if let Some(Ok(s)) = &self.feature_stereo {
+            out.push(("feature_stereo", &s.pnp.quality));
+        }
         if let Some(Ok((s, _))) = &self.se3 {
             out.push(("direct_se3", &s.quality));
         }
@@ -196,7 +214,7 @@ impl Outcome {
         match verdicts.iter().find(|(_, q)| q.is_ok()) {
             Some(best @ (name, q)) => {
                 let what = match *name {
-                    "direct_se3" => "the metric 6-DoF pose",
+                    "direct_se3" | "feature_stereo" => "the metric 6-DoF pose",
                     "feature" => "the 6-DoF pose with unit translation",
                     _ => "an image shift only",
                 };
@@ -264,6 +282,18 @@ pub fn estimate(inputs: &Inputs) -> Outcome {
             &inputs.camera,
         )
     });
+    let feature_stereo = run_feature
+        .then_some(())
+        .and(inputs.stereo.as_ref())
+        .map(|first| {
+            stereo_pose(
+                &inputs.img1,
+                first,
+                &inputs.img2,
+                &inputs.camera,
+                inputs.features,
+            )
+        });
     let translation = run_direct.then(|| {
         check_same_size(&inputs.img1, inputs.img2.size(), "frame 2")?;
         let (p1, p2) = (inputs.img1.to_f32(), inputs.img2.to_f32());
@@ -272,25 +302,31 @@ pub fn estimate(inputs: &Inputs) -> Outcome {
         })?)
     });
     let mut se3_reference = None;
-    let se3 = run_direct
-        .then_some(())
-        .and(inputs.depth1.as_ref())
-        .map(|depth| {
-            check_same_size(&inputs.img1, inputs.img2.size(), "frame 2")?;
-            check_same_size(&inputs.img1, depth.size(), "depth")?;
-            let current = inputs.img2.to_f32();
-            let ((fit, reference), ms) = timed(|| {
-                let reference =
-                    RgbdFrame::new(inputs.img1.to_f32(), depth.clone(), &inputs.camera)?;
-                let prior = Isometry3::identity();
-                let fit = align_se3(&reference, &current, &prior, &Se3Config::default())?;
-                Ok::<_, DirectError>((fit, reference))
-            })?;
-            se3_reference = Some(reference);
-            Ok((fit, ms))
-        });
+    let depth1 = match (&inputs.depth1, &inputs.stereo) {
+        (Some(depth), _) => Some(Ok(depth.clone())),
+        (None, Some(first)) if run_direct => Some(
+            stereo_depth(&inputs.img1, first, &inputs.camera)
+                .map_err(|e| DirectPairError::StereoDepth(e.to_string())),
+        ),
+        (None, _) => None,
+    };
+    let se3 = run_direct.then_some(()).and(depth1).map(|depth| {
+        let depth = depth?;
+        check_same_size(&inputs.img1, inputs.img2.size(), "frame 2")?;
+        check_same_size(&inputs.img1, depth.size(), "depth")?;
+        let current = inputs.img2.to_f32();
+        let ((fit, reference), ms) = timed(|| {
+            let reference = RgbdFrame::new(inputs.img1.to_f32(), depth, &inputs.camera)?;
+            let prior = Isometry3::identity();
+            let fit = align_se3(&reference, &current, &prior, &Se3Config::default())?;
+            Ok::<_, DirectError>((fit, reference))
+        })?;
+        se3_reference = Some(reference);
+        Ok((fit, ms))
+    });
     Outcome {
         feature,
+        feature_stereo,
         translation,
         se3,
         se3_reference,

@@ -1,0 +1,130 @@
+//! The rendered long drive (`vofront_fixtures::long_drive`: laps of a town loop with sharp
+//! corners, reverse driving and a crossing car) tracked by the default [`MonoTracker`], frame
+//! by frame as it is rendered: whether every frame is posed, where tracking breaks (frame and
+//! the tracker's message), the ATE after Sim(3) alignment, and whether memory and time per
+//! frame stay flat over the run.
+//!
+//!     cargo run --release --example long_drive -- [--frames N] [--size WxH] [--seed S]
+//!
+//! Defaults: 3000 frames at 1241x376 (KITTI's size), textures seed 1. It prints one line per
+//! frame that is lost or restarts tracking, then one JSON line: frames, posed, lost,
+//! reinitialised, segment breaks, ATE (metres and percent of the path), resident memory
+//! (`VmRSS` of `/proc/self/status`, MiB) at frame 300 and its maximum over the run, the peak
+//! (`VmHWM`), the local map's points at frame 300 and their maximum, and the tracker's mean
+//! time per frame over frames 100-400 and over the last 300 frames (rendering excluded).
+
+use std::time::Instant;
+
+use vofront::dataset::Frame;
+use vofront::eval::{ate, Alignment, EvalConfig};
+use vofront::odometry::mono::{MonoConfig, MonoTracker};
+use vofront::odometry::{FrameEstimate, TrackStatus, Tracker};
+use vofront::trajectory::Trajectory;
+use vofront_fixtures::image2d::to_gray8;
+use vofront_fixtures::long_drive::{LongDrive, LONG_DRIVE_SIZE};
+
+/// `(VmRSS, VmHWM)` of this process, MiB (`None` where `/proc` is not there).
+fn memory_mib() -> Option<(f64, f64)> {
+    let status = std::fs::read_to_string("/proc/self/status").ok()?;
+    let field = |name: &str| -> Option<f64> {
+        let line = status.lines().find(|l| l.starts_with(name))?;
+        let kb: f64 = line.split_whitespace().nth(1)?.parse().ok()?;
+        Some(kb / 1024.0)
+    };
+    Some((field("VmRSS:")?, field("VmHWM:")?))
+}
+
+/// The value after `flag` in `args`, parsed.
+fn flag<T: std::str::FromStr>(args: &[String], flag: &str) -> Option<T> {
+    let k = args.iter().position(|a| a == flag)?;
+    args.get(k + 1)?.parse().ok()
+}
+
+/// Mean of `values[range]` (NaN when empty).
+fn mean(values: &[f64], range: std::ops::Range<usize>) -> f64 {
+    let part = &values[range.start.min(values.len())..range.end.min(values.len())];
+    part.iter().sum::<f64>() / part.len() as f64
+}
+
+fn main() -> Result<(), String> {
+    let args: Vec<String> = std::env::args().skip(1).collect();
+    let frames: usize = flag(&args, "--frames").unwrap_or(3000);
+    let seed: u64 = flag(&args, "--seed").unwrap_or(1);
+    let size = flag::<String>(&args, "--size")
+        .and_then(|s| {
+            let (w, h) = s.split_once('x')?;
+            Some((w.parse().ok()?, h.parse().ok()?))
+        })
+        .unwrap_or(LONG_DRIVE_SIZE);
+    let drive = LongDrive::new(seed, frames, size);
+    let mut tracker =
+        MonoTracker::new(drive.camera, MonoConfig::default()).map_err(|e| e.to_string())?;
+    // The local map's points are read from the tracker's details.
+    tracker.keep_details(true);
+    let mut estimates: Vec<FrameEstimate> = Vec::with_capacity(frames);
+    let mut track_ms = Vec::with_capacity(frames);
+    let mut map_points = Vec::with_capacity(frames);
+    let (mut rss_max, mut rss_300, mut points_300) = (0.0_f64, f64::NAN, 0);
+    let (mut render_s, mut breaks) = (0.0, 0);
+    for i in 0..frames {
+        let render_start = Instant::now();
+        let image = to_gray8(&drive.render(i).image);
+        render_s += render_start.elapsed().as_secs_f64();
+        let frame = Frame::new(LongDrive::timestamp(i), image, None).map_err(|e| e.to_string())?;
+        let start = Instant::now();
+        let estimate = tracker.track(&frame);
+        track_ms.push(1e3 * start.elapsed().as_secs_f64());
+        estimates.push(estimate);
+        for (back, e) in tracker.revised() {
+            estimates[i - back] = e;
+        }
+        let e = &estimates[i];
+        if e.status == TrackStatus::Lost || e.status == TrackStatus::Reinitialised {
+            let message = e.message.as_deref().unwrap_or("");
+            breaks += usize::from(message.contains("segment break"));
+            println!("frame {i}: {:?}: {message}", e.status);
+        }
+        map_points.push(tracker.details().map_or(0, |d| d.map_points.len()));
+        if let Some((rss, _)) = memory_mib() {
+            rss_max = rss_max.max(rss);
+            if i == 300.min(frames - 1) {
+                (rss_300, points_300) = (rss, map_points[i]);
+            }
+        }
+    }
+    let (mut truth, mut trajectory) = (Trajectory::default(), Trajectory::default());
+    for (i, e) in estimates.iter().enumerate() {
+        truth.push(LongDrive::timestamp(i), drive.poses_wc[i]);
+        if e.status != TrackStatus::Lost {
+            trajectory.push(LongDrive::timestamp(i), e.pose_wc);
+        }
+    }
+    let cfg = EvalConfig {
+        alignment: Alignment::Sim3,
+        ..EvalConfig::default()
+    };
+    let ate_m = match ate(&truth, &trajectory, &cfg) {
+        Ok(a) => a.stats.rmse,
+        Err(e) => {
+            eprintln!("long_drive: ATE: {e}");
+            f64::NAN
+        }
+    };
+    let path = drive.path_length();
+    let count = |s: TrackStatus| estimates.iter().filter(|e| e.status == s).count();
+    println!(
+        "{{\"frames\": {frames}, \"size\": \"{}x{}\", \"posed\": {}, \"lost\": {}, \"reinitialised\": {}, \"segment_breaks\": {breaks}, \"path_m\": {path:.1}, \"ate_m\": {ate_m:.3}, \"ate_percent\": {:.3}, \"rss_mib_300\": {rss_300:.1}, \"rss_mib_max\": {rss_max:.1}, \"rss_ratio\": {:.3}, \"hwm_mib\": {:.1}, \"map_points_300\": {points_300}, \"map_points_max\": {}, \"ms_100_400\": {:.2}, \"ms_last_300\": {:.2}, \"render_s\": {render_s:.1}}}",
+        size.0,
+        size.1,
+        trajectory.len(),
+        count(TrackStatus::Lost),
+        count(TrackStatus::Reinitialised),
+        100.0 * ate_m / path.max(1e-9),
+        rss_max / rss_300,
+        memory_mib().map_or(f64::NAN, |m| m.1),
+        map_points.iter().max().unwrap_or(&0),
+        mean(&track_ms, 100..400),
+        mean(&track_ms, frames.saturating_sub(300)..frames),
+    );
+    Ok(())
+}

@@ -1,0 +1,97 @@
+//! Settings of the direct monocular tracker.
+
+use vofront_direct::mono::{DepthRules, SelectConfig};
+use vofront_direct::Se3Config;
+use vofront_features::{MatchConfig, OrbConfig};
+use vofront_geometry::RelativePoseConfig;
+use vofront_robust::QualityConfig;
+
+use crate::odometry::keyframe::KeyframePolicy;
+
+/// Settings of [`super::DirectMonoTracker`].
+#[derive(Debug, Clone)]
+pub struct DirectMonoConfig {
+    /// SE(3) frame alignment (affine brightness; depths in map units, so wide bounds).
+    pub se3: Se3Config,
+    /// Point selection of a keyframe.
+    pub select: SelectConfig,
+    /// Epipolar search, depth filter and activation of the points.
+    pub depth: DepthRules,
+    /// ORB of the two-view initialisation.
+    pub orb: OrbConfig,
+    /// Descriptor matching of the initialisation.
+    pub matching: MatchConfig,
+    /// Two-view pose of the initialisation.
+    pub relative: RelativePoseConfig,
+    /// Fewest matches and triangulated points of an initialisation.
+    pub min_init_points: usize,
+    /// Smallest median parallax of an initialisation, degrees.
+    pub min_init_parallax_deg: f64,
+    /// Frames an initialisation waits for parallax before taking a newer reference.
+    pub max_init_frames: usize,
+    /// Prior standard deviation of a new point's inverse depth, in units of the keyframe's
+    /// median inverse depth (its mean): wide, so that near points are found too.
+    pub prior_sigma: f64,
+    /// Fewest active points of a keyframe (else the previous keyframe is kept).
+    pub min_active_points: usize,
+    /// The tracking reference is rebuilt when the active points grew by this factor.
+    pub rebuild_growth: f64,
+    /// Previous keyframes whose immature points are still refined and handed over.
+    pub window: usize,
+    /// When to take a new keyframe (translation relative to the median depth, rotation,
+    /// tracked ratio, residual growth).
+    pub keyframe: KeyframePolicy,
+    /// Smallest inlier ratio of a tracked frame.
+    pub min_inlier_ratio: f64,
+    /// An alignment whose RMSE exceeds this multiple of the keyframe's first one is retried
+    /// from the other starts (zero motion, turned by `retry_turn_deg` about x and y).
+    pub retry_residual_growth: f64,
+    /// Rotation of the perturbed starts, degrees.
+    pub retry_turn_deg: f64,
+    /// Thresholds of the alignment's verdict, used in place of `se3.quality`.
+    pub quality: QualityConfig,
+}
+
+impl Default for DirectMonoConfig {
+    fn default() -> Self {
+        Self {
+            se3: Se3Config {
+                min_depth: 1e-3,
+                max_depth: 1e6,
+                ..Se3Config::default()
+            },
+            select: SelectConfig::default(),
+            depth: DepthRules::default(),
+            orb: OrbConfig {
+                n_features: 1500,
+                ..OrbConfig::default()
+            },
+            matching: MatchConfig {
+                ratio: Some(0.8),
+                ..MatchConfig::default()
+            },
+            relative: RelativePoseConfig::default(),
+            min_init_points: 80,
+            min_init_parallax_deg: 1.0,
+            max_init_frames: 30,
+            prior_sigma: 3.0,
+            min_active_points: 100,
+            rebuild_growth: 1.1,
+            window: 0,
+            keyframe: KeyframePolicy {
+                max_relative_translation: 0.15,
+                max_rotation_deg: 5.0,
+                min_overlap: 0.5,
+                max_residual_growth: 1.8,
+            },
+            min_inlier_ratio: 0.4,
+            retry_residual_growth: 3.0,
+            retry_turn_deg: 2.0,
+            // A sparse reference has hundreds of points, not a dense one's thousands of pixels.
+            quality: QualityConfig {
+                min_pixels: 100,
+                ..QualityConfig::default()
+            },
+        }
+    }
+}

@@ -1,0 +1,499 @@
+//! Direct monocular tracker (`--method direct-mono`): sparse photometric SE(3) tracking with
+//! affine brightness against keyframes whose points carry inverse-depth filters (SVO/DSO-style;
+//! the parts are `vofront_direct::mono`); the trajectory's scale is arbitrary.
+//!
+//! 1. Start (`init`): the first frame is the reference; later frames are matched to it by
+//!    ORB until the two-view pose ([`vofront_geometry::estimate_relative_pose`]) has the
+//!    parallax and points to be trusted; its scale makes the median point depth 1. The
+//!    reference becomes the first keyframe: the triangulated points are active at once, and
+//!    one point per free block (by gradient, `vofront_direct::mono::select_points`) is an
+//!    immature point with the prior `N(rho_median, rho_median^2)`, searched once along its
+//!    epipolar segment in the current frame. The frames waited through are located late
+//!    (`late`), by alignment from the pose their index puts between the two views.
+//! 2. Each frame: `Se3Reference::align` (coarse to fine, robust, affine brightness) of the
+//!    keyframe's active points from the constant-velocity prediction `T_cur_kf =
+//!    T_wc'^-1 T_w_kf`; when it fails or its RMSE exceeds `retry_residual_growth` times the
+//!    keyframe's first one, again from zero motion and from the prediction turned by
+//!    `retry_turn_deg` about x and about y, keeping the lowest RMSE. `T_wc = T_w_kf T_cur_kf^-1`.
+//! 3. Every point of the keyframe is then searched in the frame along its epipolar segment
+//!    over `rho +- 2.5 sigma` and its filter updated; converged points become active, and the
+//!    reference is rebuilt when they grew by `rebuild_growth`.
+//! 4. A new keyframe (translation over the median depth, rotation, tracked ratio, residual
+//!    growth: [`KeyframePolicy`](super::keyframe::KeyframePolicy)) takes the active points
+//!    carried in (moved, projected, their filters transferred) and immature points in the
+//!    blocks they leave free. The previous keyframe keeps its immature points in a window of
+//!    `window` keyframes: they are still searched in each frame (from `T_cur_kf = T_wc^-1
+//!    T_w_kf`), and each that converges is carried into the newest keyframe (SVO's seeds).
+//! 5. A frame that cannot be aligned is lost (the motion model coasts); it becomes the
+//!    reference of a new start, placed at the coasted pose with the baseline the motion
+//!    model's step length gives, and the frames until then are located late.
+//!
+//! No windowed photometric bundle adjustment yet: keyframe poses and depths are not refined
+//! jointly.
+
+mod config;
+mod init;
+mod keyframe;
+
+use std::collections::VecDeque;
+use std::time::Instant;
+
+use nalgebra::{Isometry3, UnitQuaternion, Vector3};
+use thiserror::Error;
+use vofront_core::{Camera, Pinhole};
+use vofront_direct::{Se3Config, Se3Result, Undistorter};
+use vofront_features::{FeatureError, Features, Orb};
+use vofront_image::Image;
+use vofront_robust::Verdict;
+
+pub use config::DirectMonoConfig;
+use init::two_view;
+use keyframe::MonoKeyframe;
+
+use super::coast::Coasting;
+use super::keyframe::KeyframeView;
+use super::late::{LateEstimates, Waiting};
+use super::{ms_since, reasons_text, FrameEstimate, FrameQuality, TrackStatus, Tracker};
+use crate::dataset::Frame;
+use crate::error::VoError;
+
+/// Why a direct monocular tracker could not be built.
+#[derive(Debug, Error)]
+pub enum DirectMonoError {
+    /// The initialisation's ORB configuration is invalid.
+    #[error(transparent)]
+    Features(#[from] FeatureError),
+    /// A setting out of its domain.
+    #[error("invalid direct-mono configuration: {0}")]
+    InvalidConfig(&'static str),
+}
+
+enum State {
+    /// Nothing to start from.
+    Empty,
+    /// Waiting for a two-view start against `reference` (its pinhole `image`, at `t_wc`).
+    Initialising {
+        features: Features,
+        image: Image<f32>,
+        t_wc: Isometry3<f64>,
+        waiting: Waiting<Image<f32>>,
+    },
+    /// Tracking the keyframe; `T_cur_kf` of the last frame; the previous keyframes whose
+    /// immature points are still refined (oldest first).
+    Tracking {
+        kf: Box<MonoKeyframe>,
+        last: Isometry3<f64>,
+        window: VecDeque<MonoKeyframe>,
+    },
+}
+
+/// Sparse direct monocular tracker (see the module documentation).
+///
+/// ```
+/// use vofront::dataset::Frame;
+/// use vofront::fixtures::driving::{DrivingSequence, FRAME_RATE};
+/// use vofront::fixtures::image2d::to_gray8;
+/// use vofront::core::lie::direction_angle_deg;
+/// use vofront::odometry::direct_mono::{DirectMonoConfig, DirectMonoTracker};
+/// use vofront::odometry::{TrackStatus, Tracker};
+///
+/// let drive = DrivingSequence::new(3, 10);
+/// let mut tracker = DirectMonoTracker::new(drive.camera, DirectMonoConfig::default()).unwrap();
+/// let mut last = None;
+/// for i in 0..10 {
+///     let frame = Frame::new(i as f64 / FRAME_RATE, to_gray8(&drive.render(i).image), None).unwrap();
+///     last = Some(tracker.track(&frame));
+/// }
+/// let last = last.unwrap();
+/// // Posed (`ok`, or `unreliable` with its reasons), not lost.
+/// assert_ne!(last.status, TrackStatus::Lost);
+/// let truth = drive.poses_wc[0].inverse() * drive.poses_wc[9];
+/// let angle = direction_angle_deg(&last.pose_wc.translation.vector, &truth.translation.vector);
+/// assert!(angle < 5.0, "{angle} deg");
+/// ```
+pub struct DirectMonoTracker {
+    cfg: DirectMonoConfig,
+    camera: Camera,
+    /// The pinhole camera every image is brought to.
+    pinhole: Camera,
+    orb: Orb,
+    undistorter: Option<Undistorter>,
+    state: State,
+    coast: Coasting,
+    late: LateEstimates,
+    /// A map has been started (a later start is a reinitialisation).
+    started: bool,
+    /// The world frame is defined (the first reference frame was taken): lost frames coast.
+    origin: bool,
+}
+
+impl DirectMonoTracker {
+    /// A tracker for frames of `camera`; fails on an invalid ORB or selection configuration.
+    pub fn new(camera: Camera, cfg: DirectMonoConfig) -> Result<Self, DirectMonoError> {
+        if cfg.select.block == 0 || cfg.select.levels == 0 || cfg.min_active_points == 0 {
+            return Err(DirectMonoError::InvalidConfig(
+                "select.block, select.levels and min_active_points must be positive",
+            ));
+        }
+        let orb = Orb::new(cfg.orb.clone())?;
+        Ok(Self {
+            cfg,
+            camera,
+            pinhole: Camera::pinhole(camera.pinhole),
+            orb,
+            undistorter: None,
+            state: State::Empty,
+            coast: Coasting::default(),
+            late: LateEstimates::default(),
+            started: false,
+            origin: false,
+        })
+    }
+
+    fn k(&self) -> Pinhole {
+        self.camera.pinhole
+    }
+
+    /// The frame's grey image in the pinhole geometry (the undistorter built at the first
+    /// frame of a distorted camera).
+    fn pinhole_image(&mut self, frame: &Frame) -> Result<Image<f32>, VoError> {
+        let grey = frame.image().to_f32();
+        if self.camera.distortion.is_identity() {
+            return Ok(grey);
+        }
+        let (w, h) = grey.size();
+        let u = match self.undistorter.take() {
+            Some(u) if u.size() == (w, h) => u,
+            _ => Undistorter::new(&self.camera, w, h)?,
+        };
+        let out = u.undistort_image(&grey)?;
+        self.undistorter = Some(u);
+        // Outside the source the remap gives NaN; ORB and the searches want grey levels.
+        Ok(out.map(|v| if v.is_finite() { *v } else { 0.0 }))
+    }
+
+    fn se3(&self) -> Se3Config {
+        Se3Config {
+            quality: self.cfg.quality,
+            ..self.cfg.se3
+        }
+    }
+
+    /// One alignment of `image` to `kf` from `prior`, judged: a failed verdict or a low
+    /// inlier ratio is an error.
+    fn align_once(
+        &self,
+        kf: &MonoKeyframe,
+        image: &Image<f32>,
+        prior: &Isometry3<f64>,
+    ) -> Result<Se3Result, VoError> {
+        let r = kf.reference.align(image, prior, &self.se3())?;
+        if r.quality.verdict == Verdict::Failed {
+            return Err(VoError::Rejected {
+                what: "SE(3)",
+                reasons: reasons_text(&r.quality),
+            });
+        }
+        if r.inlier_ratio < self.cfg.min_inlier_ratio {
+            return Err(VoError::LowInlierRatio {
+                ratio: r.inlier_ratio,
+                min: self.cfg.min_inlier_ratio,
+            });
+        }
+        Ok(r)
+    }
+
+    /// The alignment from `prior`, retried from zero motion (`last`) and turned starts when
+    /// it fails or its residual grew (module documentation); the lowest RMSE wins.
+    fn align(
+        &self,
+        kf: &MonoKeyframe,
+        image: &Image<f32>,
+        prior: Isometry3<f64>,
+        last: Isometry3<f64>,
+    ) -> Result<Se3Result, VoError> {
+        let first = self.align_once(kf, image, &prior);
+        let limit = kf
+            .first_residual
+            .map_or(f64::INFINITY, |r| self.cfg.retry_residual_growth * r);
+        if matches!(&first, Ok(r) if r.rmse <= limit) {
+            return first;
+        }
+        let turn = self.cfg.retry_turn_deg.to_radians();
+        let turned = |axis: Vector3<f64>| {
+            let r = UnitQuaternion::from_scaled_axis(axis * turn);
+            Isometry3::from_parts(prior.translation, r * prior.rotation)
+        };
+        let starts = [
+            last,
+            turned(Vector3::x()),
+            turned(-Vector3::x()),
+            turned(Vector3::y()),
+            turned(-Vector3::y()),
+        ];
+        starts
+            .iter()
+            .map(|s| self.align_once(kf, image, s))
+            .fold(first, |best, next| match (best, next) {
+                (Ok(b), Ok(n)) => Ok(if n.rmse < b.rmse { n } else { b }),
+                (Err(_), Ok(n)) => Ok(n),
+                (best, Err(_)) => best,
+            })
+    }
+
+    /// A located frame's estimate: `fit` against a keyframe at `t_w_kf`.
+    fn located(
+        fit: &Se3Result,
+        t_w_kf: &Isometry3<f64>,
+        keyframe: bool,
+        start: Instant,
+    ) -> FrameEstimate {
+        let quality = FrameQuality::of_se3(fit, keyframe, ms_since(start));
+        FrameEstimate {
+            pose_wc: t_w_kf * fit.pose.inverse(),
+            status: TrackStatus::Ok,
+            quality,
+            message: None,
+            pose_quality: None,
+        }
+        .judged(fit.quality.clone())
+    }
+
+    /// Starts waiting on `image` at `t_wc` as a new reference (none when it has too few
+    /// features).
+    fn new_reference(&self, image: Image<f32>, t_wc: Isometry3<f64>) -> State {
+        match self.orb.detect_and_describe(&image.to_u8()) {
+            Ok(features) if features.len() >= self.cfg.min_init_points => State::Initialising {
+                features,
+                image,
+                t_wc,
+                waiting: Waiting::from(self.late.frame()),
+            },
+            _ => State::Empty,
+        }
+    }
+
+    /// Tries the two-view start of `image` against the reference; its estimate.
+    fn initialise(
+        &mut self,
+        (features, reference, t_w1, mut waiting): (
+            Features,
+            Image<f32>,
+            Isometry3<f64>,
+            Waiting<Image<f32>>,
+        ),
+        image: Image<f32>,
+        predicted: Isometry3<f64>,
+        start: Instant,
+    ) -> FrameEstimate {
+        let now = self.late.frame();
+        let since = waiting.since();
+        let current = match self.orb.detect_and_describe(&image.to_u8()) {
+            Ok(f) => f,
+            Err(e) => {
+                self.state = State::Initialising {
+                    features,
+                    image: reference,
+                    t_wc: t_w1,
+                    waiting,
+                };
+                return FrameEstimate::lost(predicted, e.to_string(), start);
+            }
+        };
+        let baseline = if self.started {
+            self.coast
+                .motion
+                .step_length()
+                .map(|s| s * (now - since) as f64)
+        } else {
+            None
+        };
+        let started =
+            two_view(&self.cfg, &self.pinhole, &features, &current, baseline).and_then(|tv| {
+                MonoKeyframe::first(
+                    reference.clone(),
+                    t_w1,
+                    &tv.points,
+                    (&image, &tv.t_21),
+                    self.k(),
+                    &self.cfg,
+                )
+                .map(|kf| (tv, kf))
+                .map_err(|e| init::InitFailure {
+                    why: format!("initialising: {e}"),
+                    keep_reference: true,
+                })
+            });
+        let (tv, kf) = match started {
+            Ok(s) => s,
+            Err(failure) => {
+                let waited = now - since;
+                self.state = if failure.keep_reference && waited < self.cfg.max_init_frames {
+                    waiting.push(now, image);
+                    State::Initialising {
+                        features,
+                        image: reference,
+                        t_wc: t_w1,
+                        waiting,
+                    }
+                } else {
+                    self.new_reference(image, predicted)
+                };
+                return FrameEstimate::lost(predicted, failure.why, start);
+            }
+        };
+        let t_wc = t_w1 * tv.t_21.inverse();
+        self.coast.motion.restart(&t_w1, &t_wc, now - since);
+        let revised = waiting.locate(&t_w1, (now, &t_wc), |img, pose, start| {
+            let prior = pose.inverse() * kf.t_wc;
+            let fit = self.align_once(&kf, img, &prior).ok()?;
+            Some(Self::located(&fit, &kf.t_wc, false, start))
+        });
+        self.late.hand_over(revised);
+        let status = if self.started {
+            TrackStatus::Reinitialised
+        } else {
+            TrackStatus::Ok
+        };
+        self.started = true;
+        self.state = State::Tracking {
+            kf: Box::new(kf),
+            last: tv.t_21,
+            window: VecDeque::new(),
+        };
+        let quality = FrameQuality {
+            inliers: tv.inliers.0,
+            inlier_ratio: tv.inliers.0 as f64 / tv.inliers.1.max(1) as f64,
+            keyframe: true,
+            ms: ms_since(start),
+            ..FrameQuality::default()
+        };
+        let message = (status == TrackStatus::Reinitialised).then(|| "new map".to_string());
+        FrameEstimate {
+            pose_wc: t_wc,
+            status,
+            quality,
+            message,
+            pose_quality: None,
+        }
+        .judged(tv.quality)
+    }
+
+    /// Tracks `image` against `kf`; on failure the frame is lost and becomes a new reference.
+    fn track_keyframe(
+        &mut self,
+        mut kf: Box<MonoKeyframe>,
+        (last, mut window): (Isometry3<f64>, VecDeque<MonoKeyframe>),
+        image: Image<f32>,
+        predicted: Isometry3<f64>,
+        start: Instant,
+    ) -> FrameEstimate {
+        let prior = predicted.inverse() * kf.t_wc;
+        let fit = match self.align(&kf, &image, prior, last) {
+            Ok(fit) => fit,
+            Err(e) => {
+                self.state = self.new_reference(image, predicted);
+                return FrameEstimate::lost(predicted, format!("tracking lost: {e}"), start);
+            }
+        };
+        let t_wc = kf.t_wc * fit.pose.inverse();
+        self.coast.motion.update(t_wc);
+        let first_residual = *kf.first_residual.get_or_insert(fit.rmse);
+        let k = self.k();
+        let t_cw = t_wc.inverse();
+        for old in window.iter_mut() {
+            old.hand_over(&mut kf, &image, &(t_cw * old.t_wc), k, &self.cfg);
+        }
+        // A refinement failure (the reference could not be rebuilt) keeps the old reference.
+        let refined = kf.refine(&image, &fit.pose, k, &self.cfg);
+        let view = KeyframeView {
+            t_cur_kf: fit.pose,
+            median_depth: kf.median_depth(&self.cfg),
+            overlap: fit.inlier_ratio * fit.valid_pixels as f64 / kf.built_with.max(1) as f64,
+            residual: fit.rmse,
+            first_residual,
+        };
+        let mut keyframe = false;
+        let mut last = fit.pose;
+        if refined.is_err() || self.cfg.keyframe.needs_keyframe(&view) {
+            if let Ok(next) = kf.next(image, t_wc, &fit.pose, k, &self.cfg) {
+                let mut old = std::mem::replace(&mut kf, Box::new(next));
+                old.keep_immature(&self.cfg);
+                window.push_back(*old);
+                while window.len() > self.cfg.window {
+                    window.pop_front();
+                }
+                keyframe = true;
+                last = Isometry3::identity();
+            }
+        }
+        self.state = State::Tracking { kf, last, window };
+        Self::located(&fit, &(t_wc * fit.pose), keyframe, start)
+    }
+}
+
+impl Tracker for DirectMonoTracker {
+    fn track(&mut self, frame: &Frame) -> FrameEstimate {
+        self.late.begin_frame();
+        let start = Instant::now();
+        let predicted = self.coast.predict();
+        let estimate = match self.pinhole_image(frame) {
+            Err(e) => FrameEstimate::lost(predicted, e.to_string(), start),
+            Ok(image) => match std::mem::replace(&mut self.state, State::Empty) {
+                State::Empty => {
+                    self.state = self.new_reference(image, predicted);
+                    if !self.origin && matches!(self.state, State::Initialising { .. }) {
+                        // The first frame with features defines the world frame.
+                        self.origin = true;
+                        self.coast.motion.update(predicted);
+                        let quality = FrameQuality {
+                            keyframe: true,
+                            ms: ms_since(start),
+                            ..FrameQuality::default()
+                        };
+                        FrameEstimate {
+                            pose_wc: predicted,
+                            status: TrackStatus::Ok,
+                            quality,
+                            message: None,
+                            pose_quality: None,
+                        }
+                    } else {
+                        FrameEstimate::lost(predicted, "initialising: new reference".into(), start)
+                    }
+                }
+                State::Initialising {
+                    features,
+                    image: reference,
+                    t_wc,
+                    waiting,
+                } => self.initialise(
+                    (features, reference, t_wc, waiting),
+                    image,
+                    predicted,
+                    start,
+                ),
+                State::Tracking { kf, last, window } => {
+                    self.track_keyframe(kf, (last, window), image, predicted, start)
+                }
+            },
+        };
+        if self.origin {
+            self.coast
+                .end_frame(estimate.status == TrackStatus::Lost, predicted);
+        }
+        self.late.end_frame();
+        estimate
+    }
+
+    fn pending(&self) -> usize {
+        match &self.state {
+            State::Initialising { waiting, .. } => self.late.pending(Some(waiting)),
+            _ => 0,
+        }
+    }
+
+    fn revised(&mut self) -> Vec<(usize, FrameEstimate)> {
+        self.late.take()
+    }
+}

@@ -1,0 +1,168 @@
+//! Metric estimates of a pair whose first frame is a rectified stereo pair (`vofront two-view
+//! --right1 PNG --baseline M`, Python `two_view(..., right1=, baseline=)`): the left image of
+//! frame 2 located against the metric points of frame 1.
+//!
+//! - [`stereo_pose`] (`feature_stereo`): ORB on both images of frame 1 matched along their
+//!   rows (the stereo tracker's own matching: points `P = Z K^-1 [u, v, 1]` with
+//!   `Z = f b / d`, only those with `sigma_d / d` at most the tracker's
+//!   [`StereoTrackerConfig::max_relative_depth_sigma`]), the left features matched by
+//!   descriptor to frame 2's ORB features, then PnP RANSAC with robust refinement: `T_21`
+//!   with a metric translation, its quality from [`PnpResult::quality`].
+//! - [`stereo_depth`]: frame 1's semi-dense depth from the disparity of its high-gradient
+//!   pixels ([`vofront_image::disparity`]), the depth map with which the direct SE(3)
+//!   alignment of [`super::estimate`] runs when no `depth1` is given.
+//!
+//! The pair must be rectified (a pinhole camera without distortion, the right camera at
+//! `x = +baseline` in the left one, as KITTI's `image_0`/`image_1`).
+
+use std::time::Instant;
+
+use nalgebra::{Isometry3, Translation3};
+use vofront_core::rig::Rig;
+use vofront_core::Camera;
+use vofront_features::{match_descriptors, Orb};
+use vofront_geometry::{solve_pnp_ransac_with_sigmas, PnpResult};
+use vofront_image::disparity::{match_pixels, select_pixels, DisparityConfig};
+use vofront_image::Image;
+
+use crate::error::VoError;
+use crate::odometry::mono::KEYPOINT_QUANTISATION_PX;
+use crate::odometry::stereo::rectified::{DepthRule, Rectified};
+use crate::odometry::stereo::StereoTrackerConfig;
+use crate::pipeline::feature_pixel;
+use crate::timing::ms_since;
+
+/// The right image of frame 1 and the rig's baseline.
+pub struct StereoFirst {
+    /// Right image of frame 1, rectified with the left one.
+    pub right1: Image<u8>,
+    /// Distance between the two camera centres, metres.
+    pub baseline: f64,
+}
+
+/// `T_21` of frame 2's left camera from frame 1's metric stereo points.
+pub struct StereoPose {
+    /// PnP's pose `T_21` (frame-1 left-camera points into frame 2, metres), inliers,
+    /// covariance and quality.
+    pub pnp: PnpResult,
+    /// ORB keypoints of frame 1's left image and of frame 2.
+    pub keypoints: [usize; 2],
+    /// Frame-1 features with a metric point (matched in the right image, depth trusted).
+    pub stereo_points: usize,
+    /// Those points matched by descriptor in frame 2: PnP's correspondences.
+    pub matches: usize,
+    /// Wall-clock time, milliseconds.
+    pub ms: f64,
+}
+
+/// The rectified rig of a distortion-free `camera` with the right camera at `x = +baseline`.
+fn rectified(camera: &Camera, baseline: f64, size: (usize, usize)) -> Result<Rectified, VoError> {
+    if !camera.distortion.is_identity() {
+        return Err(VoError::StereoFrame(
+            "the stereo pair must be rectified: the camera has lens distortion".into(),
+        ));
+    }
+    let right = Isometry3::from_parts(Translation3::new(baseline, 0.0, 0.0), Default::default());
+    let rig = Rig::stereo(*camera, Isometry3::identity(), *camera, right)
+        .map_err(|e| VoError::StereoFrame(e.to_string()))?;
+    Rectified::new(&rig, size).map_err(|e| VoError::StereoFrame(e.to_string()))
+}
+
+/// The metric pose of `left2` against the stereo pair `(left1, first.right1)` seen by
+/// `camera` (see the module documentation), with at most `features` ORB features per image.
+///
+/// Errors: images of different sizes, a distorted camera or a bad baseline
+/// ([`VoError::StereoFrame`]), fewer than 6 points matched in frame 2 ([`VoError::TooFew`]),
+/// PnP failing ([`VoError::Geometry`]).
+pub fn stereo_pose(
+    left1: &Image<u8>,
+    first: &StereoFirst,
+    left2: &Image<u8>,
+    camera: &Camera,
+    features: usize,
+) -> Result<StereoPose, VoError> {
+    let start = Instant::now();
+    let mut cfg = StereoTrackerConfig::default();
+    cfg.orb.n_features = features;
+    let rect = rectified(camera, first.baseline, left1.size())?;
+    if left2.size() != left1.size() {
+        return Err(VoError::StereoFrame(format!(
+            "frame 2 is {:?}, frame 1 {:?}",
+            left2.size(),
+            left1.size()
+        )));
+    }
+    let orb = Orb::new(cfg.orb.clone())?;
+    let depth = DepthRule {
+        disparity_sigma_px: KEYPOINT_QUANTISATION_PX,
+        max_relative_sigma: cfg.max_relative_depth_sigma,
+    };
+    let (view, f2) = rayon::join(
+        || rect.view(&orb, &cfg.stereo, depth, left1, &first.right1),
+        || orb.detect_and_describe(left2),
+    );
+    let (view, f2) = (view.map_err(|e| VoError::StereoFrame(e.to_string()))?, f2?);
+    let with_point: Vec<u32> = (0..view.features.len() as u32)
+        .filter(|&i| view.points[i as usize].is_some())
+        .collect();
+    let descriptors: Vec<_> = with_point
+        .iter()
+        .map(|&i| view.features.descriptors()[i as usize])
+        .collect();
+    let matches = match_descriptors(&descriptors, f2.descriptors(), &cfg.matching);
+    const MIN_MATCHES: usize = 6;
+    if matches.len() < MIN_MATCHES {
+        return Err(VoError::TooFew {
+            what: "stereo points matched in frame 2",
+            got: matches.len(),
+            need: MIN_MATCHES,
+        });
+    }
+    let mut points = Vec::with_capacity(matches.len());
+    let mut pixels = Vec::with_capacity(matches.len());
+    let mut sigmas = Vec::with_capacity(matches.len());
+    for m in &matches {
+        let i = with_point[m.query as usize] as usize;
+        points.extend(view.points[i]);
+        pixels.push(feature_pixel(&f2, m.train));
+        sigmas.push(f64::from(f2.scales()[m.train as usize]));
+    }
+    let pnp =
+        solve_pnp_ransac_with_sigmas(&points, &pixels, &sigmas, &rect.camera, None, &cfg.pnp)?;
+    Ok(StereoPose {
+        pnp,
+        keypoints: [view.features.len(), f2.len()],
+        stereo_points: with_point.len(),
+        matches: matches.len(),
+        ms: ms_since(start),
+    })
+}
+
+/// Frame 1's semi-dense metric depth (metres, 0 where unknown) from the disparity of its
+/// high-gradient pixels against `first.right1`, `Z = f b / d`, keeping depths whose relative
+/// uncertainty `sigma_d / d` is at most the stereo tracker's
+/// [`StereoTrackerConfig::max_relative_depth_sigma`].
+///
+/// Errors: as [`stereo_pose`]'s rig and size checks.
+pub fn stereo_depth(
+    left1: &Image<u8>,
+    first: &StereoFirst,
+    camera: &Camera,
+) -> Result<Image<f32>, VoError> {
+    let rect = rectified(camera, first.baseline, left1.size())?;
+    let max_relative_sigma = StereoTrackerConfig::default().max_relative_depth_sigma;
+    let (left, right) = (left1.to_f32(), first.right1.to_f32());
+    let cfg = DisparityConfig::default();
+    let found = match_pixels(&left, &right, &select_pixels(&left, &cfg), &cfg)
+        .map_err(|e| VoError::StereoFrame(e.to_string()))?;
+    let (width, height) = left1.size();
+    let mut depth = vec![0.0f32; width * height];
+    for m in found
+        .iter()
+        .flatten()
+        .filter(|m| f64::from(m.sigma / m.disparity) <= max_relative_sigma)
+    {
+        depth[m.y as usize * width + m.x as usize] = m.depth(rect.fb) as f32;
+    }
+    Image::new(width, height, depth).map_err(|e| VoError::StereoFrame(e.to_string()))
+}
