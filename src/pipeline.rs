@@ -82,6 +82,18 @@ pub(crate) fn feature_pixel(f: &Features, i: u32) -> nalgebra::Vector2<f64> {
     nalgebra::Vector2::new(f64::from(f.xs()[i as usize]), f64::from(f.ys()[i as usize]))
 }
 
+/// The pixels `(x1, x2)` of `matches` from the features `f1` (queries) to `f2` (train).
+pub(crate) fn matched_pixels(
+    f1: &Features,
+    f2: &Features,
+    matches: &[Match],
+) -> (Vec<nalgebra::Vector2<f64>>, Vec<nalgebra::Vector2<f64>>) {
+    matches
+        .iter()
+        .map(|m| (feature_pixel(f1, m.query), feature_pixel(f2, m.train)))
+        .unzip()
+}
+
 impl TwoViewEstimator {
     /// A tracker keeping at most `n_features` ORB features per image, other settings default.
     pub fn with_features(n_features: usize) -> Self {
@@ -113,14 +125,7 @@ impl TwoViewEstimator {
         let matches = match_descriptors(f1.descriptors(), f2.descriptors(), &self.matching);
         let matching = ms_since(t_match);
         let t_estimate = Instant::now();
-        let x1: Vec<_> = matches
-            .iter()
-            .map(|m| feature_pixel(&f1, m.query))
-            .collect();
-        let x2: Vec<_> = matches
-            .iter()
-            .map(|m| feature_pixel(&f2, m.train))
-            .collect();
+        let (x1, x2) = matched_pixels(&f1, &f2, &matches);
         let estimate = estimate_relative_pose(&x1, &x2, camera, &self.geometry)?;
         let timings = FeatureTimings {
             detect,

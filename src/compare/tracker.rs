@@ -114,6 +114,24 @@ pub struct FramePoint {
     pub keyframe: bool,
 }
 
+impl FramePoint {
+    /// A frame with `status` and no scores (no estimate, or one not scored): no error, no
+    /// inliers, no residual or time.
+    fn without_estimate(index: usize, timestamp: f64, status: &'static str) -> Self {
+        Self {
+            index,
+            timestamp,
+            status,
+            error_m: None,
+            inliers: 0,
+            inlier_ratio: 0.0,
+            residual: 0.0,
+            ms: 0.0,
+            keyframe: false,
+        }
+    }
+}
+
 fn kind_name<S: serde::Serializer>(kind: &TrackerKind, s: S) -> Result<S::Ok, S::Error> {
     s.serialize_str(kind.name())
 }
@@ -257,17 +275,7 @@ fn frame_point(r: &FrameRecord, errors: &HashMap<u64, f64>) -> FramePoint {
             ms: e.quality.ms,
             keyframe: e.quality.keyframe,
         },
-        Err(_) => FramePoint {
-            index: r.index,
-            timestamp: r.timestamp,
-            status: "unreadable",
-            error_m: None,
-            inliers: 0,
-            inlier_ratio: 0.0,
-            residual: 0.0,
-            ms: 0.0,
-            keyframe: false,
-        },
+        Err(_) => FramePoint::without_estimate(r.index, r.timestamp, "unreadable"),
     }
 }
 
@@ -315,17 +323,7 @@ mod tests {
     use super::*;
 
     fn point(index: usize, status: &'static str) -> FramePoint {
-        FramePoint {
-            index,
-            timestamp: index as f64,
-            status,
-            error_m: None,
-            inliers: 0,
-            inlier_ratio: 0.0,
-            residual: 0.0,
-            ms: 0.0,
-            keyframe: false,
-        }
+        FramePoint::without_estimate(index, index as f64, status)
     }
 
     #[test]

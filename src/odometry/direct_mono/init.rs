@@ -15,7 +15,8 @@ use vofront_geometry::estimate_relative_pose;
 use vofront_robust::{Quality, Verdict};
 
 use super::config::DirectMonoConfig;
-use crate::odometry::{feature_pixel, reasons_text};
+use crate::odometry::reasons_text;
+use crate::pipeline::matched_pixels;
 
 /// An accepted two-view start.
 pub(super) struct TwoView {
@@ -57,14 +58,7 @@ pub(super) fn two_view(
         let why = format!("{} matches, {} needed", matches.len(), cfg.min_init_points);
         return Err(fail(why, false));
     }
-    let x1: Vec<_> = matches
-        .iter()
-        .map(|m| feature_pixel(reference, m.query))
-        .collect();
-    let x2: Vec<_> = matches
-        .iter()
-        .map(|m| feature_pixel(current, m.train))
-        .collect();
+    let (x1, x2) = matched_pixels(reference, current, &matches);
     let rel = estimate_relative_pose(&x1, &x2, camera, &cfg.relative)
         .map_err(|e| fail(e.to_string(), false))?;
     if rel.quality.verdict == Verdict::Failed {

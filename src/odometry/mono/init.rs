@@ -17,7 +17,8 @@ use vofront_features::{match_descriptors, Features, MatchConfig};
 use vofront_geometry::{estimate_relative_pose, RelativePoseConfig};
 
 use crate::odometry::local_map::LocalMap;
-use crate::odometry::{feature_pixel, reasons_text, FrameQuality};
+use crate::odometry::{reasons_text, FrameQuality};
+use crate::pipeline::matched_pixels;
 use crate::robust::{Quality, Verdict};
 
 /// Settings of [`initialise`].
@@ -68,14 +69,7 @@ pub(super) fn initialise(
             rules.min_points
         )));
     }
-    let x1: Vec<_> = matches
-        .iter()
-        .map(|m| feature_pixel(reference, m.query))
-        .collect();
-    let x2: Vec<_> = matches
-        .iter()
-        .map(|m| feature_pixel(current, m.train))
-        .collect();
+    let (x1, x2) = matched_pixels(reference, current, &matches);
     let rel = estimate_relative_pose(&x1, &x2, rules.camera, rules.relative)
         .map_err(|e| give_up(format!("initialising: {e}")))?;
     // A two-view pose judged failed (no support beyond chance, degenerate) makes no map.
