@@ -3,7 +3,7 @@
 use nalgebra::{Matrix3, Vector2, Vector3};
 
 use super::correspondences::Correspondences;
-use super::refine::refine_relative_pose;
+use super::refine::local_refinement;
 use crate::essential::{
     decompose_essential, essential_5pt, essential_8pt, select_by_chirality, RecoverConfig,
 };
@@ -11,12 +11,16 @@ use crate::homography::homography_dlt;
 use crate::lie::hat;
 use crate::ransac::Estimator;
 use crate::residual::{row_major, symmetric_transfer_sq, Epipolar};
-use vofront_robust::Loss;
+
+/// IRLS iterations of one local optimisation: enough to gather a hypothesis's inliers (as in
+/// PnP's RANSAC); the chosen model is refined to convergence afterwards.
+pub const LO_ITERATIONS: usize = 4;
 
 /// Essential matrix hypotheses from the five-point solver, scored by the Sampson error
 /// (normalized units; the threshold is `ransac.threshold / f`). The second field is the noise
 /// scale (normalized units) of the local optimisation, which refits on the inliers by the
-/// eight-point algorithm followed by Huber IRLS on the Sampson distance.
+/// eight-point algorithm followed by a few ([`LO_ITERATIONS`]) Huber IRLS steps on the Sampson
+/// distance.
 pub struct EssentialEstimator<'a>(pub &'a Correspondences, pub f64);
 
 impl Estimator for EssentialEstimator<'_> {
@@ -56,8 +60,7 @@ impl Estimator for EssentialEstimator<'_> {
                 rec.pose.rotation.to_rotation_matrix(),
                 rec.pose.translation.vector,
             );
-            let (r, t) =
-                refine_relative_pose(self.0, indices, 1.0, self.1, Loss::Huber(1.345), init);
+            let (r, t) = local_refinement(self.0, indices, self.1, init, LO_ITERATIONS);
             out.push(hat(&t) * r.matrix());
         }
     }

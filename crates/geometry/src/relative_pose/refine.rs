@@ -306,6 +306,28 @@ pub fn refine_relative_pose_fit(
     loss: Loss,
     init: RelState,
 ) -> Option<RelRefinement> {
+    refine_fit(
+        data,
+        indices,
+        (focal, sigma_px),
+        loss,
+        init,
+        REFINE_ITERATIONS,
+    )
+}
+
+/// Iterations of a full refinement ([`refine_relative_pose_fit`]).
+const REFINE_ITERATIONS: usize = 20;
+
+/// [`refine_relative_pose_fit`] stopped after at most `max_iterations` iterations.
+fn refine_fit(
+    data: &Correspondences,
+    indices: &[usize],
+    (focal, sigma_px): (f64, f64),
+    loss: Loss,
+    init: RelState,
+    max_iterations: usize,
+) -> Option<RelRefinement> {
     let mut problem = SampsonProblem {
         data,
         indices,
@@ -315,7 +337,7 @@ pub fn refine_relative_pose_fit(
         loss,
         scale: ScaleMode::Fixed(sigma_px),
         lm: LmConfig {
-            max_iterations: 20,
+            max_iterations,
             min_step: 1e-9,
             min_relative_decrease: 1e-8,
             ..LmConfig::default()
@@ -344,6 +366,28 @@ pub fn refine_relative_pose(
     init: RelState,
 ) -> RelState {
     refine_relative_pose_fit(data, indices, focal, sigma_px, loss, init).map_or(init, |r| r.state)
+}
+
+/// A few Huber IRLS steps (at most `max_iterations`) of [`refine_relative_pose`] on the Sampson
+/// distance in units of `sigma` (normalized coordinates at `focal` 1): the local optimisation
+/// of a RANSAC hypothesis, which only has to gather its inliers; the chosen model is refined
+/// in full afterwards. The input when the solve fails.
+pub(crate) fn local_refinement(
+    data: &Correspondences,
+    indices: &[usize],
+    sigma: f64,
+    init: RelState,
+    max_iterations: usize,
+) -> RelState {
+    refine_fit(
+        data,
+        indices,
+        (1.0, sigma),
+        Loss::Huber(1.345),
+        init,
+        max_iterations,
+    )
+    .map_or(init, |r| r.state)
 }
 
 /// Settings of [`refine_maximum_likelihood`].
