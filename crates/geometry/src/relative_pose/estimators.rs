@@ -19,7 +19,7 @@ pub const LO_ITERATIONS: usize = 4;
 /// Essential matrix hypotheses from the five-point solver, scored by the Sampson error
 /// (normalized units; the threshold is `ransac.threshold / f`). The second field is the noise
 /// scale (normalized units) of the local optimisation, which refits on the inliers by the
-/// eight-point algorithm followed by a few ([`LO_ITERATIONS`]) Huber IRLS steps on the Sampson
+/// eight-point algorithm followed by a few (`LO_ITERATIONS`) Huber IRLS steps on the Sampson
 /// distance.
 pub struct EssentialEstimator<'a>(pub &'a Correspondences, pub f64);
 
