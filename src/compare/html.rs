@@ -74,26 +74,9 @@ fn html_table(report: &CompareReport) -> String {
 /// The page: heading (dataset, format, frames, camera), the table, the trajectories, the
 /// per-frame error and the inliers beside the photometric residual.
 pub fn page(report: &CompareReport) -> String {
-    let head = format!(
-        "{} ({}), {} frames, camera {}{}{}",
-        report.dataset,
-        report.format,
-        report.frames,
-        report.camera.source,
-        if report.ground_truth {
-            ""
-        } else {
-            ", no ground truth"
-        },
-        if report.interrupted {
-            ", interrupted"
-        } else {
-            ""
-        }
-    );
     let mut body = format!(
         "<h1>vofront compare</h1>\n<p>{}</p>\n{}",
-        escape(&head),
+        escape(&report.headline()),
         html_table(report)
     );
     body.push_str(

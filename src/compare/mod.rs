@@ -146,6 +146,28 @@ pub struct CompareReport {
 }
 
 impl CompareReport {
+    /// One line on what was compared: dataset (format), frames, the camera's source, and
+    /// whether the ground truth is missing or the run was interrupted.
+    pub fn headline(&self) -> String {
+        format!(
+            "{} ({}), {} frames, camera: {}{}{}",
+            self.dataset,
+            self.format,
+            self.frames,
+            self.camera.source,
+            if self.ground_truth {
+                ""
+            } else {
+                ", no ground truth"
+            },
+            if self.interrupted {
+                ", interrupted"
+            } else {
+                ""
+            }
+        )
+    }
+
     /// An empty report on `dataset` with `config`'s camera and frame limit, leaving out
     /// `skipped`.
     pub fn new(dataset: &Dataset, config: &CompareConfig, skipped: Vec<Skipped>) -> Self {

@@ -91,18 +91,7 @@ pub fn table(report: &CompareReport) -> String {
     let widths: Vec<usize> = (0..COLUMNS.len())
         .map(|c| rows.iter().map(|r| r[c].chars().count()).max().unwrap_or(0))
         .collect();
-    let mut out = format!(
-        "{} ({}), {} frames, camera: {}{}\n",
-        report.dataset,
-        report.format,
-        report.frames,
-        report.camera.source,
-        if report.ground_truth {
-            ""
-        } else {
-            ", no ground truth"
-        }
-    );
+    let mut out = format!("{}\n", report.headline());
     for row in &rows {
         let line: Vec<String> = row
             .iter()

@@ -383,21 +383,9 @@ pub struct OdometryArgs {
     /// Tracker (`feature`, the former name of `mono`, is still accepted).
     #[arg(long, value_enum, default_value_t = TrackerKind::Direct)]
     pub method: TrackerKind,
-    /// Camera; without flags: the camera the dataset names (KITTI calib.txt, EuRoC
-    /// sensor.yaml, a TUM folder name or list header), else tum-ros.
+    /// How the dataset is read: camera, depth scale, frame rate, bag topics.
     #[command(flatten)]
-    pub camera: CameraArgs,
-    /// Depth units per metre, overriding the dataset's (TUM: 5000); 8-bit and 16-bit depth
-    /// PNGs are both divided by it as stored.
-    #[arg(long, value_name = "UNITS", allow_negative_numbers = true)]
-    pub depth_scale: Option<f64>,
-    /// Frame rate (Hz) of a plain folder of images: frame `i` at `i / fps` s [default: times
-    /// from the file names].
-    #[arg(long, value_name = "HZ", allow_negative_numbers = true)]
-    pub fps: Option<f64>,
-    /// The bag topics of `dataset` when it is a ROS 2 bag (`.mcap`).
-    #[command(flatten)]
-    pub topics: TopicArgs,
+    pub input: DatasetArgs,
     /// ORB feature budget per frame of the feature trackers [default: the tracker's, 1000
     /// for feature-rgbd].
     #[arg(long, value_name = "N")]
@@ -484,6 +472,39 @@ impl TopicArgs {
     }
 }
 
+/// How `odometry` and `compare` read their dataset.
+#[derive(Debug, Args)]
+pub struct DatasetArgs {
+    /// Camera of the monocular and RGB-D trackers; without flags: the camera the dataset names
+    /// (KITTI calib.txt, EuRoC sensor.yaml, a TUM folder name or list header), else tum-ros
+    /// (the stereo trackers use the dataset's rig).
+    #[command(flatten)]
+    pub camera: CameraArgs,
+    /// Depth units per metre, overriding the dataset's (TUM: 5000); 8-bit and 16-bit depth
+    /// PNGs are both divided by it as stored.
+    #[arg(long, value_name = "UNITS", allow_negative_numbers = true)]
+    pub depth_scale: Option<f64>,
+    /// Frame rate (Hz) of a plain folder of images: frame `i` at `i / fps` s [default: times
+    /// from the file names].
+    #[arg(long, value_name = "HZ", allow_negative_numbers = true)]
+    pub fps: Option<f64>,
+    /// The bag topics of `dataset` when it is a ROS 2 bag (`.mcap`).
+    #[command(flatten)]
+    pub topics: TopicArgs,
+}
+
+impl DatasetArgs {
+    /// The camera the flags give, named as their source; `None` without camera flags (the
+    /// dataset's camera is used).
+    pub fn given_camera(&self) -> Result<Option<(Camera, &'static str)>, String> {
+        if self.camera.is_given() {
+            Ok(Some((self.camera.camera()?, "command-line flags")))
+        } else {
+            Ok(None)
+        }
+    }
+}
+
 /// Flags of `vofront compare`.
 #[derive(Debug, Args)]
 #[command(
@@ -506,19 +527,9 @@ pub struct CompareArgs {
         value_name = "a,b"
     )]
     pub methods: Option<Vec<TrackerKind>>,
-    /// Camera of the monocular and RGB-D trackers; without flags: the dataset's, else
-    /// tum-ros (the stereo trackers use the dataset's rig).
+    /// How the dataset is read: camera, depth scale, frame rate, bag topics.
     #[command(flatten)]
-    pub camera: CameraArgs,
-    /// Depth units per metre, overriding the dataset's (TUM: 5000).
-    #[arg(long, value_name = "UNITS", allow_negative_numbers = true)]
-    pub depth_scale: Option<f64>,
-    /// Frame rate (Hz) of a plain folder of images [default: times from the file names].
-    #[arg(long, value_name = "HZ", allow_negative_numbers = true)]
-    pub fps: Option<f64>,
-    /// The bag topics of `dataset` when it is a ROS 2 bag (`.mcap`).
-    #[command(flatten)]
-    pub topics: TopicArgs,
+    pub input: DatasetArgs,
     /// ORB feature budget per frame of the feature trackers [default: each tracker's].
     #[arg(long, value_name = "N")]
     pub features: Option<usize>,

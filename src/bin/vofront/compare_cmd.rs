@@ -21,12 +21,11 @@ use crate::odometry_cmd::{
 /// Runs `vofront compare`; the exit code: 0, 1 when no tracker ran, 130 / 143 when
 /// interrupted.
 pub fn run(args: &CompareArgs) -> Result<u8, String> {
-    let dataset = open_dataset(&args.dataset, args.fps, &args.topics, args.depth_scale)?;
-    let camera = if args.camera.is_given() {
-        Some((args.camera.camera()?, "command-line flags".to_string()))
-    } else {
-        None
-    };
+    let dataset = open_dataset(&args.dataset, &args.input)?;
+    let camera = args
+        .input
+        .given_camera()?
+        .map(|(camera, source)| (camera, source.to_string()));
     let config = CompareConfig {
         methods: args.methods.clone(),
         camera,

@@ -28,7 +28,7 @@ use vofront::odometry::sink::KittiSink;
 use vofront::odometry::Tracker;
 use vofront::report::odometry::{OdometryReport, Outputs};
 
-use crate::args::{OdometryArgs, OutFormat, TopicArgs};
+use crate::args::{DatasetArgs, OdometryArgs, OutFormat};
 
 /// Exit code when tracking was lost for good (partial results are still written).
 pub const EXIT_LOST: u8 = 3;
@@ -224,13 +224,15 @@ pub fn install_signal_handlers() -> Result<(Arc<AtomicBool>, Arc<AtomicUsize>), 
 }
 
 /// Opens the dataset folder or bag at `path` with the `--fps`, topic and `--depth-scale`
-/// flags (each checked), printing the dataset's notes on stderr.
-pub fn open_dataset(
-    path: &Path,
-    fps: Option<f64>,
-    topics: &TopicArgs,
-    depth_scale: Option<f64>,
-) -> Result<Dataset, String> {
+/// flags of `input` (each checked), printing the dataset's notes on stderr.
+pub fn open_dataset(path: &Path, input: &DatasetArgs) -> Result<Dataset, String> {
+    let DatasetArgs {
+        fps,
+        topics,
+        depth_scale,
+        ..
+    } = input;
+    let (fps, depth_scale) = (*fps, *depth_scale);
     if let Some(fps) = fps {
         if !(fps.is_finite() && fps > 0.0) {
             return Err(format!("--fps {fps}: must be a positive number"));
@@ -261,12 +263,8 @@ pub fn open_dataset(
 /// Runs `vofront odometry`; the exit code: 0, [`EXIT_LOST`], [`EXIT_SIGINT`] or
 /// [`EXIT_SIGTERM`].
 pub fn run(args: &OdometryArgs) -> Result<u8, String> {
-    let dataset = open_dataset(&args.dataset, args.fps, &args.topics, args.depth_scale)?;
-    let given = if args.camera.is_given() {
-        Some((args.camera.camera()?, "command-line flags"))
-    } else {
-        None
-    };
+    let dataset = open_dataset(&args.dataset, &args.input)?;
+    let given = args.input.given_camera()?;
     let session = Session::new(dataset, args.method, given).map_err(|e| e.to_string())?;
     let options = TrackerOptions {
         features: args.features,
