@@ -226,13 +226,7 @@ pub fn install_signal_handlers() -> Result<(Arc<AtomicBool>, Arc<AtomicUsize>), 
 /// Opens the dataset folder or bag at `path` with the `--fps`, topic and `--depth-scale`
 /// flags of `input` (each checked), printing the dataset's notes on stderr.
 pub fn open_dataset(path: &Path, input: &DatasetArgs) -> Result<Dataset, String> {
-    let DatasetArgs {
-        fps,
-        topics,
-        depth_scale,
-        ..
-    } = input;
-    let (fps, depth_scale) = (*fps, *depth_scale);
+    let (fps, topics, depth_scale) = (input.fps, &input.topics, input.depth_scale);
     if let Some(fps) = fps {
         if !(fps.is_finite() && fps > 0.0) {
             return Err(format!("--fps {fps}: must be a positive number"));

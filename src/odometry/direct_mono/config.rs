@@ -7,6 +7,7 @@ use vofront_geometry::RelativePoseConfig;
 use vofront_robust::QualityConfig;
 
 use crate::odometry::keyframe::KeyframePolicy;
+use crate::odometry::mono::config::{monocular_matching, monocular_orb};
 
 /// Settings of [`super::DirectMonoTracker`].
 #[derive(Debug, Clone)]
@@ -62,14 +63,8 @@ impl Default for DirectMonoConfig {
             },
             select: SelectConfig::default(),
             depth: DepthRules::default(),
-            orb: OrbConfig {
-                n_features: 1500,
-                ..OrbConfig::default()
-            },
-            matching: MatchConfig {
-                ratio: Some(0.8),
-                ..MatchConfig::default()
-            },
+            orb: monocular_orb(),
+            matching: monocular_matching(),
             relative: RelativePoseConfig::default(),
             min_init_points: 80,
             min_init_parallax_deg: 1.0,

@@ -72,17 +72,27 @@ pub struct MonoConfig {
     pub local_ba: Option<BundleConfig>,
 }
 
+/// ORB of the monocular trackers (`mono`, and `direct-mono`'s start): 1500 features per frame.
+pub(crate) fn monocular_orb() -> OrbConfig {
+    OrbConfig {
+        n_features: 1500,
+        ..OrbConfig::default()
+    }
+}
+
+/// Descriptor matching of the monocular trackers: the ratio test at 0.8.
+pub(crate) fn monocular_matching() -> MatchConfig {
+    MatchConfig {
+        ratio: Some(0.8),
+        ..MatchConfig::default()
+    }
+}
+
 impl Default for MonoConfig {
     fn default() -> Self {
         Self {
-            orb: OrbConfig {
-                n_features: 1500,
-                ..OrbConfig::default()
-            },
-            matching: MatchConfig {
-                ratio: Some(0.8),
-                ..MatchConfig::default()
-            },
+            orb: monocular_orb(),
+            matching: monocular_matching(),
             window_px: 24.0,
             relative: RelativePoseConfig::default(),
             // ORB positions at pyramid level k are uncertain by about 1.2^k pixels: on real

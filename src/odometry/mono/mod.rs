@@ -42,7 +42,7 @@
 //!    keeps its speed.
 
 mod adjust;
-mod config;
+pub(crate) mod config;
 mod init;
 mod locate;
 #[cfg(test)]

@@ -309,7 +309,8 @@ pub fn refine_relative_pose_fit(
     refine_fit(
         data,
         indices,
-        (focal, sigma_px),
+        focal,
+        sigma_px,
         loss,
         init,
         REFINE_ITERATIONS,
@@ -323,7 +324,8 @@ const REFINE_ITERATIONS: usize = 20;
 fn refine_fit(
     data: &Correspondences,
     indices: &[usize],
-    (focal, sigma_px): (f64, f64),
+    focal: f64,
+    sigma_px: f64,
     loss: Loss,
     init: RelState,
     max_iterations: usize,
@@ -382,7 +384,8 @@ pub(crate) fn local_refinement(
     refine_fit(
         data,
         indices,
-        (1.0, sigma),
+        1.0,
+        sigma,
         Loss::Huber(1.345),
         init,
         max_iterations,
