@@ -5,7 +5,7 @@
 //! measured (`cargo test --release --test challenges -- --nocapture` prints the tables): the
 //! RGB-D direct tracker is the most accurate on blur, low texture and the repeated pattern,
 //! where the feature trackers drift (feature RGB-D ten times its error on the repeated
-//! pattern) and the monocular one loses frames; through the exposure jumps the feature
+//! pattern, the monocular one forty times, though it keeps every frame); through the exposure jumps the feature
 //! trackers keep every frame without a break, while the direct tracker restarts at some of
 //! the jumps.
 
@@ -126,7 +126,7 @@ fn on_low_texture_with_strong_gradients_direct_is_the_most_accurate() {
 }
 
 #[test]
-fn on_a_repeated_pattern_the_feature_trackers_drift_and_mono_loses_frames() {
+fn on_a_repeated_pattern_the_feature_trackers_drift() {
     let report = compare_on(Challenge::RepeatedPattern);
     assert_every_allowed_tracker_ran(&report);
     let direct = ate(run(&report, TrackerKind::Direct));
@@ -137,6 +137,10 @@ fn on_a_repeated_pattern_the_feature_trackers_drift_and_mono_loses_frames() {
         "direct {direct} m, feature-rgbd {feature} m"
     );
     let mono = run(&report, TrackerKind::Mono);
-    assert!(mono.lost > 0 && !mono.lost_spans.is_empty());
-    assert!(mono.ate_percent.unwrap() > 2.0);
+    let direct_percent = run(&report, TrackerKind::Direct).ate_percent.unwrap();
+    assert!(
+        mono.ate_percent.unwrap() > 10.0 * direct_percent,
+        "mono {:?} %, direct {direct_percent} %",
+        mono.ate_percent
+    );
 }

@@ -379,8 +379,8 @@ fn an_observer_sees_each_frame_and_its_error_stops_the_run() {
 }
 
 /// The monocular and feature RGB-D trackers keep no details until asked; asked, each frame's
-/// keypoints come with their roles: in a frame located by PnP its inliers, nearly as many as
-/// the estimate counts, and the map's points.
+/// keypoints come with their roles: in a frame located by PnP its inliers, as many as the
+/// estimate counts, and the map's points.
 #[test]
 fn feature_trackers_show_keypoints_and_map_points_only_when_asked() {
     let dataset = shared_sequence();
@@ -404,14 +404,12 @@ fn feature_trackers_show_keypoints_and_map_points_only_when_asked() {
             // Located by PnP (an initialising frame shows its keypoints unmatched).
             if inliers > 0 {
                 located += 1;
-                // Two map points may match one keypoint: its inliers are at most the
-                // estimate's, and most of them.
-                let counted = estimate.quality.inliers;
+                // Matches are one to one between points and keypoints.
+                assert_eq!(inliers, estimate.quality.inliers, "frame {i}");
                 assert!(
-                    inliers <= counted && 5 * inliers >= 4 * counted,
-                    "frame {i}"
+                    outliers < inliers,
+                    "frame {i}: {outliers} outliers, {inliers} inliers"
                 );
-                assert!(outliers < inliers, "frame {i}");
                 assert!(details.map_points.len() >= inliers, "frame {i}");
             }
         }

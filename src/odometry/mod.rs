@@ -49,6 +49,7 @@ pub mod run;
 pub mod sink;
 pub mod stereo;
 
+use std::collections::HashMap;
 use std::time::Instant;
 
 use nalgebra::{Isometry3, Point3, Vector2};
@@ -354,6 +355,37 @@ pub(crate) struct Located {
     pub fit: Result<PnpResult, VoError>,
 }
 
+/// Makes `matches` (sorted by query) one to one between points and keypoints, keeping the
+/// match of smallest descriptor distance (the first on a tie): of the matches of consecutive
+/// query entries with the same point (one point matched by several descriptors:
+/// [`LocalMap::local_points`](local_map::LocalMap::local_points)), and of the matches of one
+/// current keypoint (two points seen at one pixel are one observation, not two).
+fn one_match_per_point_and_keypoint(matches: &mut Vec<Match>, points: &[Option<Point3<f64>>]) {
+    let same_point = |a: &Match, b: &Match| {
+        b.query == a.query + 1 && points[a.query as usize] == points[b.query as usize]
+    };
+    let mut kept: Vec<Match> = Vec::with_capacity(matches.len());
+    for m in matches.drain(..) {
+        match kept.last_mut() {
+            Some(last) if same_point(last, &m) => {
+                if m.distance < last.distance {
+                    *last = m;
+                }
+            }
+            _ => kept.push(m),
+        }
+    }
+    let mut best: HashMap<u32, (u32, u32)> = HashMap::with_capacity(kept.len());
+    for m in &kept {
+        let entry = best.entry(m.train).or_insert((m.distance, m.query));
+        if m.distance < entry.0 {
+            *entry = (m.distance, m.query);
+        }
+    }
+    kept.retain(|m| best.get(&m.train).is_some_and(|&(_, q)| q == m.query));
+    *matches = kept;
+}
+
 impl PointLocator<'_> {
     /// Matches keyframe features carrying a point `P` to `current` within `window_px` of
     /// `pi(K prior P)` (by brute force when that finds fewer than `2 min_inliers`), then
@@ -386,6 +418,7 @@ impl PointLocator<'_> {
             matches = match_descriptors(kf.descriptors(), current.descriptors(), self.matching);
         }
         matches.retain(|m| points[m.query as usize].is_some());
+        one_match_per_point_and_keypoint(&mut matches, points);
         let world: Vec<Point3<f64>> = matches
             .iter()
             .filter_map(|m| points[m.query as usize])
@@ -429,5 +462,43 @@ impl PointLocator<'_> {
             points: world,
             fit,
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use nalgebra::Point3;
+    use vofront_features::Match;
+
+    use super::one_match_per_point_and_keypoint;
+
+    fn m(query: u32, train: u32, distance: u32) -> Match {
+        Match {
+            query,
+            train,
+            distance,
+        }
+    }
+
+    /// Entries 0 and 1 are one point (two descriptors), 2 and 3 two points; the closer match
+    /// of the point and of keypoint 5 is kept, and a match alone on both sides stays.
+    #[test]
+    fn matches_become_one_to_one_by_the_smallest_distance() {
+        let a = Some(Point3::new(0.0, 0.0, 5.0));
+        let points = [
+            a,
+            a,
+            Some(Point3::new(1.0, 0.0, 5.0)),
+            Some(Point3::new(2.0, 0.0, 5.0)),
+        ];
+        let mut matches = vec![m(0, 4, 30), m(1, 9, 12), m(2, 5, 20), m(3, 5, 8)];
+        one_match_per_point_and_keypoint(&mut matches, &points);
+        assert_eq!(matches, [m(1, 9, 12), m(3, 5, 8)]);
+
+        // Two different points at adjacent entries are not merged; ties keep the first.
+        let mut matches = vec![m(2, 6, 10), m(3, 7, 10), m(0, 7, 10)];
+        matches.sort_by_key(|x| x.query);
+        one_match_per_point_and_keypoint(&mut matches, &points);
+        assert_eq!(matches, [m(0, 7, 10), m(2, 6, 10)]);
     }
 }

@@ -3,7 +3,9 @@
 //! observations; [`MapSearch`] locates a frame in it.
 //!
 //! - Tracking uses every point observed by a keyframe of the window (the covisible set of the
-//!   current keyframe), not only the last keyframe's.
+//!   current keyframe), not only the last keyframe's. A point is matched with its
+//!   representative descriptor and with the one it was last found with, the closer of the two
+//!   kept, and matches are one to one between points and keypoints.
 //! - A new keyframe adds observations to the points it tracked and gets new points: a stereo
 //!   keyframe from its own stereo matches ([`LocalMap::add_point`]), a monocular one by
 //!   triangulating its unassigned features matched to those of the previous keyframes (DLT,
@@ -27,6 +29,8 @@ use crate::odometry::feature_pixel;
 mod adjust;
 mod locate;
 mod point_views;
+#[cfg(test)]
+mod tests;
 
 pub(crate) use adjust::Adjusted;
 pub(crate) use locate::{MapSearch, WIDE_WINDOW_FACTOR};
@@ -44,6 +48,11 @@ pub(crate) struct MapPoint {
     pub descriptor: Descriptor,
     /// Pyramid level of that observation.
     pub level: u8,
+    /// Its descriptor in the newest frame that tracked it (a PnP inlier there), matched by
+    /// tracking beside `descriptor`: a near point changes its look within a few frames, and
+    /// the next frame sees it most like the last one did (ORB-SLAM2 tracks the last frame
+    /// first for this reason).
+    pub recent: Option<Descriptor>,
     /// Distance from that observation's camera centre to the point, map units: a camera at
     /// another distance `d` sees it about `log(distance / d) / log(scale_factor)` levels
     /// higher ([`predicted_level`]).
@@ -166,6 +175,7 @@ impl LocalMap {
             position,
             descriptor: kf0.features.descriptors()[f0 as usize],
             level: kf0.features.levels()[f0 as usize],
+            recent: None,
             distance: (position - kf0.centre()).norm(),
             observations: Vec::with_capacity(observed.len()),
             visible: 1,
@@ -201,8 +211,10 @@ impl LocalMap {
     /// Points observed by a window keyframe, as a feature list for matching (positions: the
     /// points' predicted pixels under `t_cw`, NaN when not in front; levels: the pyramid level
     /// each is expected at from that camera, [`predicted_level`] with the ORB `scale_factor`),
-    /// their world positions and the point id of each entry. Every point predicted inside the
-    /// `width x height` image counts as visible.
+    /// their world positions and the point id of each entry. A point tracked since its
+    /// representative descriptor was chosen has a second entry right after the first, with its
+    /// [`MapPoint::recent`] descriptor (the locator keeps the closer of the two matches).
+    /// Every point predicted inside the `width x height` image counts as visible.
     pub fn local_points(
         &mut self,
         camera: &Camera,
@@ -211,7 +223,12 @@ impl LocalMap {
         scale_factor: f32,
     ) -> (Features, Vec<Option<Point3<f64>>>, Vec<PointId>) {
         let (query, positions, ids) = self.project_points(camera, t_cw, size, scale_factor);
+        let mut counted = None;
         for (id, x) in ids.iter().zip(query.xs()) {
+            if counted == Some(id) {
+                continue;
+            }
+            counted = Some(id);
             if let (true, Some(p)) = (x.is_finite(), self.points.get_mut(id)) {
                 p.visible += 1;
             }
@@ -228,45 +245,46 @@ impl LocalMap {
         scale_factor: f32,
     ) -> (Features, Vec<Option<Point3<f64>>>, Vec<PointId>) {
         let centre = t_cw.inverse() * Point3::origin();
-        let mut ids: Vec<PointId> = self.points.keys().copied().collect();
-        ids.sort_unstable();
+        let mut sorted: Vec<PointId> = self.points.keys().copied().collect();
+        sorted.sort_unstable();
         let mut query = Features::default();
-        let mut positions = Vec::with_capacity(ids.len());
-        for id in &ids {
-            let p = &self.points[id];
+        let mut positions = Vec::with_capacity(sorted.len());
+        let mut ids = Vec::with_capacity(sorted.len());
+        for id in sorted {
+            let p = &self.points[&id];
             let x = t_cw * p.position;
             let uv = (x.z > 0.0)
                 .then(|| camera.project(&x.coords))
                 .flatten()
                 .filter(|u| u.x >= 0.0 && u.y >= 0.0 && u.x < width as f64 && u.y < height as f64);
+            let recent = p.recent.filter(|d| uv.is_some() && *d != p.descriptor);
             let (u, v) = uv.map_or((f32::NAN, f32::NAN), |u| (u.x as f32, u.y as f32));
-            // Windowed matching reads only positions, levels and descriptors of the query.
-            query.push(Feature {
-                x: u,
-                y: v,
-                level: predicted_level(p, (p.position - centre).norm(), scale_factor),
-                scale: 1.0,
-                angle: 0.0,
-                response: 0.0,
-                descriptor: p.descriptor,
-            });
-            positions.push(Some(p.position));
+            let level = predicted_level(p, (p.position - centre).norm(), scale_factor);
+            for descriptor in std::iter::once(p.descriptor).chain(recent) {
+                // Windowed matching reads only positions, levels and descriptors of the query.
+                query.push(Feature {
+                    x: u,
+                    y: v,
+                    level,
+                    scale: 1.0,
+                    angle: 0.0,
+                    response: 0.0,
+                    descriptor,
+                });
+                positions.push(Some(p.position));
+                ids.push(id);
+            }
         }
         (query, positions, ids)
     }
 
-    /// Marks `point` as found (a PnP inlier) in the current frame.
-    pub fn found(&mut self, point: PointId) {
-        if let Some(p) = self.points.get_mut(&point) {
-            p.found += 1;
-        }
-    }
-
     /// The PnP inliers of a location as `(match, point, position)`: `matches[i]` (query = a
-    /// local point's index in `ids`) with its position `world[i]`, kept where `inliers[i]`;
-    /// each of their points is marked found.
+    /// local point's index in `ids`, train = a feature of `current`) with its position
+    /// `world[i]`, kept where `inliers[i]`; each of their points is marked found and takes the
+    /// descriptor it was found with as its [`MapPoint::recent`].
     pub fn keep_inliers(
         &mut self,
+        current: &Features,
         matches: &[Match],
         world: &[Point3<f64>],
         inliers: &[bool],
@@ -279,8 +297,11 @@ impl LocalMap {
             .filter(|(_, inlier)| **inlier)
             .map(|((m, p), _)| (*m, ids[m.query as usize], *p))
             .collect();
-        for (_, id, _) in &tracked {
-            self.found(*id);
+        for (m, id, _) in &tracked {
+            if let Some(p) = self.points.get_mut(id) {
+                p.found += 1;
+                p.recent = Some(current.descriptors()[m.train as usize]);
+            }
         }
         tracked
     }

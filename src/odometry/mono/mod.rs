@@ -221,7 +221,7 @@ impl MonoTracker {
             details.mark(&matches, &fit.inliers);
         }
         let mut t_wc = fit.pose.inverse();
-        let tracked = map.keep_inliers(&matches, &world, &fit.inliers, &ids);
+        let tracked = map.keep_inliers(&current, &matches, &world, &fit.inliers, &ids);
         let Some(last) = map.last() else {
             return FrameEstimate::lost(predicted, "empty map".into(), start);
         };

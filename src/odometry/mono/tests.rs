@@ -109,6 +109,7 @@ fn the_expected_level_follows_the_distance_to_the_point() {
         position: nalgebra::Point3::origin(),
         descriptor: Descriptor([0; 4]),
         level: 2,
+        recent: None,
         distance: 10.0,
         observations: Vec::new(),
         visible: 1,

@@ -13,7 +13,9 @@
 //!    clips, whose close points leave the view within a few frames at 10 m/s.)
 //! 3. Tracking: the local map's points (every point a window keyframe observes) are projected
 //!    with the constant-velocity prediction and matched around their predicted pixels at the
-//!    predicted pyramid level; PnP RANSAC with Huber refinement (motion-only, each residual
+//!    predicted pyramid level, each by its representative descriptor and by the one of the
+//!    last frame that found it (near points change their look within a frame or two at
+//!    driving speed); PnP RANSAC with Huber refinement (motion-only, each residual
 //!    divided by its keypoint's level scale) gives `T_cw` (the shared local map and its
 //!    search: `odometry::local_map`).
 //! 4. A new keyframe is taken when the tracked ratio (inliers over those of the first frame
@@ -295,7 +297,7 @@ impl StereoTracker {
             details.mark(&matches, &fit.inliers);
         }
         let t_wc = fit.pose.inverse();
-        let tracked = map.keep_inliers(&matches, &world, &fit.inliers, &ids);
+        let tracked = map.keep_inliers(&view.features, &matches, &world, &fit.inliers, &ids);
         let Some(last) = map.last() else {
             return FrameEstimate::lost(predicted, "empty map".into(), start);
         };
