@@ -1,15 +1,17 @@
 //! Two views whose first is a rectified stereo pair (`two-view --right1`): on the rendered
 //! stereo drive and room, the metric `feature_stereo` pose recovers the exact `T_21` in metres,
 //! and so does the direct SE(3) pose on frame 1's stereo depth in the room (on the drive, 2 m
-//! ahead, it may fail but is never `ok` and wrong); bad stereo input is a typed error in its
-//! own entry, never a pose.
+//! ahead, it may fail but is never `ok` and wrong); the metric pose agrees with the epipolar
+//! one, and is flagged `inconsistent` against an epipolar pose it contradicts; bad stereo
+//! input is a typed error in its own entry, never a pose.
 
-use nalgebra::Isometry3;
+use nalgebra::{Isometry3, UnitQuaternion, Vector3};
 use vofront::fixtures::image2d::to_gray8;
 use vofront::fixtures::stereo::StereoSequence;
-use vofront::two_view::stereo::StereoFirst;
+use vofront::two_view::stereo::{check_against_epipolar, StereoFirst, MAX_DISAGREEMENT_SIGMAS};
 use vofront::two_view::{estimate, Inputs, Method, Outcome};
 use vofront_core::{Camera, Distortion, Lens};
+use vofront_robust::{Reason, Verdict};
 
 /// The estimates of frames `(0, gap)` of `seq`, frame 0 with its right image.
 fn pair(seq: &StereoSequence, gap: usize, camera: Camera, baseline: f64) -> Outcome {
@@ -72,6 +74,57 @@ fn check_metric(seq: &StereoSequence, gap: usize, direct_required: bool) {
         other => assert!(!direct_required, "direct: {:?}", other.as_ref().err()),
     }
     assert_eq!(outcome.recommend().estimate, Some("feature_stereo"));
+    // Compared with the epipolar pose when that is ok, and in agreement with it.
+    let epipolar = outcome
+        .feature
+        .as_ref()
+        .expect("ran")
+        .as_ref()
+        .expect("epipolar pose");
+    if epipolar.estimate.quality.is_ok() {
+        let agreement = stereo.epipolar_disagreement_sigmas.expect("compared");
+        assert!(agreement < MAX_DISAGREEMENT_SIGMAS, "{agreement} sigmas");
+    } else {
+        assert_eq!(stereo.epipolar_disagreement_sigmas, None);
+    }
+}
+
+/// An epipolar pose turned by 1 degree about the vertical (the yaw a far-point PnP can trade
+/// for sideways motion), or with its direction turned by 20 degrees, contradicts the metric
+/// pose: the metric pose becomes `unreliable` (`inconsistent`), and the recommendation moves
+/// to the epipolar estimate. An epipolar estimate that is not `ok` is not compared.
+#[test]
+fn a_metric_pose_that_contradicts_the_epipolar_one_is_inconsistent() {
+    let seq = StereoSequence::driving(3, 3);
+    let outcome = pair(&seq, 2, seq.camera, seq.baseline);
+    let stereo = outcome.feature_stereo.expect("ran").expect("stereo pose");
+    let epipolar = outcome
+        .feature
+        .expect("ran")
+        .expect("epipolar pose")
+        .estimate;
+    assert!(epipolar.quality.is_ok());
+    let yaw = UnitQuaternion::from_axis_angle(&Vector3::y_axis(), 1f64.to_radians());
+    let mut turned = epipolar.clone();
+    turned.pose.rotation = yaw * turned.pose.rotation;
+    let mut swerved = epipolar.clone();
+    swerved.pose.translation.vector =
+        UnitQuaternion::from_axis_angle(&Vector3::y_axis(), 20f64.to_radians())
+            * swerved.pose.translation.vector;
+    for contradicting in [&turned, &swerved] {
+        let mut checked = stereo.clone();
+        check_against_epipolar(&mut checked, contradicting);
+        assert!(checked.epipolar_disagreement_sigmas.expect("compared") > MAX_DISAGREEMENT_SIGMAS);
+        assert_eq!(checked.pnp.quality.verdict, Verdict::Unreliable);
+        assert!(checked.pnp.quality.reasons.contains(&Reason::Inconsistent));
+    }
+    let mut unjudged = turned.clone();
+    unjudged.quality.flag(Reason::LowParallax);
+    let mut checked = stereo.clone();
+    checked.epipolar_disagreement_sigmas = None;
+    check_against_epipolar(&mut checked, &unjudged);
+    assert_eq!(checked.epipolar_disagreement_sigmas, None);
+    assert!(checked.pnp.quality.is_ok());
 }
 
 #[test]
@@ -93,7 +146,7 @@ fn a_distorted_camera_or_a_wrong_size_is_a_typed_error() {
         ..Distortion::default()
     });
     let outcome = pair(&seq, 1, distorted, seq.baseline);
-    let err = outcome.feature_stereo.expect("ran").err().expect("refused");
+    let err = outcome.feature_stereo.expect("ran").expect_err("refused");
     assert!(err.to_string().contains("rectified"), "{err}");
     assert!(outcome.se3.expect("ran").is_err());
 

@@ -158,6 +158,11 @@ pub struct StereoReport {
     pub rmse_px: f64,
     /// Wall-clock time, milliseconds.
     pub ms: f64,
+    /// The larger of its rotation and direction disagreements with the `feature` estimate,
+    /// in combined stated sigmas (`null`: not compared); above
+    /// [`MAX_DISAGREEMENT_SIGMAS`](crate::two_view::stereo::MAX_DISAGREEMENT_SIGMAS) the
+    /// quality has the reason `inconsistent`.
+    pub epipolar_disagreement_sigmas: Option<f64>,
     /// Verdict, reasons, support, 6x6 covariance of `(rho, phi)` and sigmas (PnP's record).
     pub quality: Quality,
 }
@@ -175,6 +180,7 @@ impl StereoReport {
             inliers: s.pnp.inliers.iter().filter(|&&i| i).count(),
             rmse_px: s.pnp.rmse_px,
             ms: s.ms,
+            epipolar_disagreement_sigmas: s.epipolar_disagreement_sigmas,
             quality: s.pnp.quality.clone(),
         }
     }

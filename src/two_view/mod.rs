@@ -25,7 +25,7 @@ use crate::error::VoError;
 use crate::pipeline::{FeaturePose, TwoViewEstimator};
 use crate::report::two_view::TwoViewReport;
 use crate::timing::ms_since;
-use stereo::{stereo_depth, stereo_pose, StereoFirst, StereoPose};
+use stereo::{check_against_epipolar, stereo_depth, stereo_pose, StereoFirst, StereoPose};
 
 /// Which estimators [`estimate`] runs (`vofront two-view --method`, Python
 /// `two_view(method=...)`), parsed from and shown as [`Method::name`].
@@ -282,7 +282,7 @@ pub fn estimate(inputs: &Inputs) -> Outcome {
             &inputs.camera,
         )
     });
-    let feature_stereo = run_feature
+    let mut feature_stereo = run_feature
         .then_some(())
         .and(inputs.stereo.as_ref())
         .map(|first| {
@@ -294,6 +294,9 @@ pub fn estimate(inputs: &Inputs) -> Outcome {
                 inputs.features,
             )
         });
+    if let (Some(Ok(stereo)), Some(Ok(epipolar))) = (&mut feature_stereo, &feature) {
+        check_against_epipolar(stereo, &epipolar.estimate);
+    }
     let translation = run_direct.then(|| {
         check_same_size(&inputs.img1, inputs.img2.size(), "frame 2")?;
         let (p1, p2) = (inputs.img1.to_f32(), inputs.img2.to_f32());

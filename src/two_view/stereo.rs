@@ -8,6 +8,12 @@
 //!   [`StereoTrackerConfig::max_relative_depth_sigma`]), the left features matched by
 //!   descriptor to frame 2's ORB features, then PnP RANSAC with robust refinement: `T_21`
 //!   with a metric translation, its quality from [`PnpResult::quality`].
+//! - [`check_against_epipolar`]: the metric pose flagged [`Reason::Inconsistent`] when the
+//!   epipolar (`feature`) estimate of the same pair is `ok` and disagrees with it, in rotation
+//!   or in the direction of travel, by more than [`MAX_DISAGREEMENT_SIGMAS`] combined stated
+//!   sigmas. On a straight road most matched points are far, their stereo depths uncertain,
+//!   and PnP can trade yaw for sideways translation; the essential matrix, which needs no
+//!   depth, pins both.
 //! - [`stereo_depth`]: frame 1's semi-dense depth from the disparity of its high-gradient
 //!   pixels ([`vofront_image::disparity`]), the depth map with which the direct SE(3)
 //!   alignment of [`super::estimate`] runs when no `depth1` is given.
@@ -17,13 +23,14 @@
 
 use std::time::Instant;
 
-use nalgebra::{Isometry3, Translation3};
+use nalgebra::{Isometry3, Matrix3, Translation3, Vector3};
 use vofront_core::rig::Rig;
 use vofront_core::Camera;
 use vofront_features::{match_descriptors, Orb};
-use vofront_geometry::{solve_pnp_ransac_with_sigmas, PnpResult};
+use vofront_geometry::{solve_pnp_ransac_with_sigmas, PnpResult, RelativePose};
 use vofront_image::disparity::{match_pixels, select_pixels, DisparityConfig};
 use vofront_image::Image;
+use vofront_robust::Reason;
 
 use crate::error::VoError;
 use crate::odometry::mono::KEYPOINT_QUANTISATION_PX;
@@ -41,6 +48,7 @@ pub struct StereoFirst {
 }
 
 /// `T_21` of frame 2's left camera from frame 1's metric stereo points.
+#[derive(Debug, Clone)]
 pub struct StereoPose {
     /// PnP's pose `T_21` (frame-1 left-camera points into frame 2, metres), inliers,
     /// covariance and quality.
@@ -53,6 +61,71 @@ pub struct StereoPose {
     pub matches: usize,
     /// Wall-clock time, milliseconds.
     pub ms: f64,
+    /// The larger of the rotation and direction disagreements with the epipolar estimate of
+    /// the pair, in combined stated sigmas ([`check_against_epipolar`]; `None`: not checked).
+    pub epipolar_disagreement_sigmas: Option<f64>,
+}
+
+/// Largest disagreement of the metric pose with an `ok` epipolar estimate of the same pair, in
+/// combined stated sigmas, before the metric pose is flagged [`Reason::Inconsistent`]: 10, or 5
+/// sigmas of estimates whose stated sigmas the shared KITTI pairs show to be about 2 times
+/// too small (README, "Honest estimates").
+pub const MAX_DISAGREEMENT_SIGMAS: f64 = 10.0;
+
+/// Compares the metric pose `stereo` with the `ok` epipolar estimate `epipolar` of the same
+/// pair (both `T_21`):
+/// - rotation: `angle(R_s R_e^T) / hypot(sigma_s, sigma_e)`, the sigmas RMS rotation sigmas;
+/// - direction, when both translate: `angle(t_s, t_e) / hypot(sigma_s, sigma_e)`, the
+///   stereo direction sigma `sqrt(trace(P C_t P)) / |t_s|` with `C_t` the translation block
+///   of PnP's covariance and `P = I - n n^T` the projection across `n = t_s / |t_s|`.
+///
+/// Records the larger ratio in `stereo` and flags its quality [`Reason::Inconsistent`] when it
+/// exceeds [`MAX_DISAGREEMENT_SIGMAS`]. Nothing is checked when `epipolar` is not `ok` or a
+/// sigma is unknown.
+pub fn check_against_epipolar(stereo: &mut StereoPose, epipolar: &RelativePose) {
+    if !epipolar.quality.is_ok() {
+        return;
+    }
+    let (s, e) = (&stereo.pnp.pose, &epipolar.pose);
+    let (q_s, q_e) = (
+        &stereo.pnp.quality.uncertainty,
+        &epipolar.quality.uncertainty,
+    );
+    let (Some(rot_s), Some(rot_e)) = (q_s.rotation_sigma_deg, q_e.rotation_sigma_deg) else {
+        return;
+    };
+    let rotation = (s.rotation * e.rotation.inverse()).angle().to_degrees();
+    let mut sigmas = rotation / rot_s.hypot(rot_e);
+    let (t_s, t_e) = (s.translation.vector, e.translation.vector);
+    let dir_e = q_e.translation_direction_sigma_deg;
+    if let (Some(dir_s), Some(dir_e)) = (direction_sigma_deg(&stereo.pnp, &t_s), dir_e) {
+        if t_e.norm() > 0.0 {
+            let direction = t_s.angle(&t_e).to_degrees();
+            sigmas = sigmas.max(direction / dir_s.hypot(dir_e));
+        }
+    }
+    if !sigmas.is_finite() {
+        return;
+    }
+    stereo.epipolar_disagreement_sigmas = Some(sigmas);
+    if sigmas > MAX_DISAGREEMENT_SIGMAS {
+        stereo.pnp.quality.flag(Reason::Inconsistent);
+    }
+}
+
+/// RMS standard deviation of the direction of PnP's translation `t` (degrees), from the
+/// translation block of its covariance across `t`; `None` without a covariance or a
+/// translation.
+fn direction_sigma_deg(pnp: &PnpResult, t: &Vector3<f64>) -> Option<f64> {
+    let length = t.norm();
+    if length == 0.0 {
+        return None;
+    }
+    let c_t: Matrix3<f64> = pnp.covariance?.fixed_view::<3, 3>(0, 0).into_owned();
+    let n = t / length;
+    let across = Matrix3::identity() - n * n.transpose();
+    let variance = (across * c_t * across).trace().max(0.0);
+    Some((variance.sqrt() / length).to_degrees())
 }
 
 /// The rectified rig of a distortion-free `camera` with the right camera at `x = +baseline`.
@@ -135,6 +208,7 @@ pub fn stereo_pose(
         stereo_points: with_point.len(),
         matches: matches.len(),
         ms: ms_since(start),
+        epipolar_disagreement_sigmas: None,
     })
 }
 

@@ -67,6 +67,10 @@ pub enum Reason {
     /// The predicted rotation standard deviation exceeds
     /// [`QualityConfig::max_rotation_sigma_deg`] (unreliable).
     LargeUncertainty,
+    /// Another estimate of the same motion from the same images, made with another model,
+    /// disagrees with this one far beyond their stated uncertainties (unreliable): one of the
+    /// two is wrong, and the data alone do not say which.
+    Inconsistent,
 }
 
 impl Reason {
@@ -84,7 +88,8 @@ impl Reason {
             | Reason::PlanarAmbiguous
             | Reason::NotConverged
             | Reason::HighResidual
-            | Reason::LargeUncertainty => Verdict::Unreliable,
+            | Reason::LargeUncertainty
+            | Reason::Inconsistent => Verdict::Unreliable,
         }
     }
 
@@ -103,6 +108,7 @@ impl Reason {
             Reason::Degenerate => "degenerate",
             Reason::HighResidual => "high_residual",
             Reason::LargeUncertainty => "large_uncertainty",
+            Reason::Inconsistent => "inconsistent",
         }
     }
 }
@@ -301,22 +307,36 @@ impl Quality {
         {
             reasons.push(Reason::LowParallax);
         }
-        reasons.sort();
-        reasons.dedup();
-        let verdict = reasons
-            .iter()
-            .map(|r| r.severity())
-            .max()
-            .unwrap_or(Verdict::Ok);
-        Self {
-            verdict,
+        let mut quality = Self {
+            verdict: Verdict::Ok,
             reasons,
             support,
             sigma,
             iterations,
             converged,
             uncertainty,
-        }
+        };
+        quality.settle();
+        quality
+    }
+
+    /// Adds `reason` (found by a check outside the estimator, such as
+    /// [`Reason::Inconsistent`]) and sets the verdict again.
+    pub fn flag(&mut self, reason: Reason) {
+        self.reasons.push(reason);
+        self.settle();
+    }
+
+    /// Sorts the reasons, drops repeats and sets the verdict from them.
+    fn settle(&mut self) {
+        self.reasons.sort();
+        self.reasons.dedup();
+        self.verdict = self
+            .reasons
+            .iter()
+            .map(|r| r.severity())
+            .max()
+            .unwrap_or(Verdict::Ok);
     }
 
     /// True when the verdict is [`Verdict::Ok`].
@@ -472,6 +492,29 @@ mod tests {
             ..Support::new(10, 10)
         };
         assert_eq!(judge(pixels, &[]).reasons, vec![Reason::TooFewPixels]);
+    }
+
+    /// A reason found after the estimate was judged lowers an `ok` verdict, keeps a `failed`
+    /// one, and is listed once.
+    #[test]
+    fn a_flag_added_later_sets_the_verdict_again() {
+        let cfg = QualityConfig::default();
+        let good = Support {
+            log10_nfa: Some(-50.0),
+            ..Support::new(200, 300)
+        };
+        let mut q = Quality::judge(good, 1.0, 3, true, Uncertainty::default(), &[], &cfg);
+        q.flag(Reason::Inconsistent);
+        q.flag(Reason::Inconsistent);
+        assert_eq!(
+            (q.verdict, q.reasons.clone()),
+            (Verdict::Unreliable, vec![Reason::Inconsistent])
+        );
+        let few = Support::new(3, 300);
+        let mut q = Quality::judge(few, 1.0, 3, true, Uncertainty::default(), &[], &cfg);
+        q.flag(Reason::Inconsistent);
+        assert_eq!(q.verdict, Verdict::Failed);
+        assert!(q.reasons.contains(&Reason::Inconsistent));
     }
 
     #[test]
