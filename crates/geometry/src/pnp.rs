@@ -14,11 +14,11 @@
 //! inlier threshold and the chance test apply. The covariance is then of the whitened
 //! residuals, in units where `s_i = 1` has the noise `sigma_px`.
 
-use nalgebra::{Isometry3, Matrix2x3, Matrix6, Point3, SVector, Vector2, Vector3};
+use nalgebra::{Isometry3, Matrix2x3, Matrix3, Matrix6, Point3, SVector, Vector2, Vector3};
 use vofront_robust::quality::{block_rows, log10_nfa, repaired_chance_rate, rms_of};
 use vofront_robust::{
-    irls, Convergence, IrlsConfig, LmConfig, Loss, Problem, Quality, QualityConfig, Reason, Rows,
-    ScaleMode, Support, Uncertainty,
+    at_least, irls, Convergence, IrlsConfig, LmConfig, Loss, Problem, Quality, QualityConfig,
+    Reason, Rows, ScaleMode, Support, Uncertainty,
 };
 
 use crate::camera::Camera;
@@ -451,15 +451,7 @@ pub fn pnp_quality(
         log10_nfa: Some(log10_nfa(ev.tested, ev.inliers, 3, ev.p0, ev.hypotheses)),
         ..Support::new(ev.inliers, ev.candidates)
     };
-    let uncertainty = covariance.map_or_else(Uncertainty::default, |c| Uncertainty {
-        translation_sigma_m: Some(rms_of(&block_rows(|r, k| c[(r, k)], 0, 3), 1.0)),
-        rotation_sigma_deg: Some(rms_of(
-            &block_rows(|r, k| c[(r, k)], 3, 3),
-            1f64.to_degrees(),
-        )),
-        covariance: Some(block_rows(|r, k| c[(r, k)], 0, 6)),
-        ..Uncertainty::default()
-    });
+    let uncertainty = covariance.map_or_else(Uncertainty::default, pnp_uncertainty);
     let flags: &[Reason] = if ev.degenerate {
         &[Reason::Degenerate]
     } else {
@@ -474,4 +466,80 @@ pub fn pnp_quality(
         flags,
         cfg,
     )
+}
+
+/// The uncertainty record of a PnP covariance of `(rho, phi)`: the 6x6 matrix,
+/// `translation_sigma_m = sqrt(tr Sigma_rho)` and `rotation_sigma_deg = sqrt(tr Sigma_phi)`.
+fn pnp_uncertainty(c: &Matrix6<f64>) -> Uncertainty {
+    Uncertainty {
+        translation_sigma_m: Some(rms_of(&block_rows(|r, k| c[(r, k)], 0, 3), 1.0)),
+        rotation_sigma_deg: Some(rms_of(
+            &block_rows(|r, k| c[(r, k)], 3, 3),
+            1f64.to_degrees(),
+        )),
+        covariance: Some(block_rows(|r, k| c[(r, k)], 0, 6)),
+        ..Uncertainty::default()
+    }
+}
+
+/// Raises `fit`'s covariance to what the uncertainty of its 3D points implies where that is
+/// wider. PnP's own covariance is the empirical sandwich of its residuals: it sees a point's
+/// error only through the residual it leaves, not through the part the pose absorbs, and not
+/// at all when the points' errors are shared (a keyframe's stereo depths, its pose). With `J_i`
+/// the whitened Jacobian of inlier `i`'s residual in the pose (`jpix [I | -hat(T P)] / s_i`),
+/// `G_i = jpix R / s_i` its Jacobian in the point and `C_i` the point's covariance (world
+/// frame, metres^2), the model covariance at the nominal pixel noise `cfg.sigma_px` is
+///
+/// `Sigma_model = H^-1 (sum_i J_i^T (sigma_px^2 I + G_i C_i G_i^T) J_i) H^-1`,  `H = sum_i J_i^T J_i`
+///
+/// (the Gauss-Newton step's response to both noises), and the result is
+/// [`at_least`]`(Sigma, Sigma_model)`. `world`, `sigmas` (each pixel's relative noise scale)
+/// and `covariances` are index-aligned with `fit.inliers`; points without a covariance add
+/// no point term. The quality's uncertainty follows, and a rotation sigma now above
+/// `cfg.quality.max_rotation_sigma_deg` adds [`Reason::LargeUncertainty`]. Nothing changes
+/// without a covariance in `fit` or when `H` is singular.
+pub fn add_point_covariances(
+    fit: &mut PnpResult,
+    camera: &Camera,
+    world: &[Point3<f64>],
+    sigmas: &[f64],
+    covariances: &[Option<Matrix3<f64>>],
+    cfg: &PnpConfig,
+) {
+    let Some(covariance) = fit.covariance else {
+        return;
+    };
+    let rotation = fit.pose.rotation.to_rotation_matrix();
+    let mut h = Matrix6::zeros();
+    let mut from_points = Matrix6::zeros();
+    for (i, _) in fit.inliers.iter().enumerate().filter(|(_, &inlier)| inlier) {
+        let (Some(p), Some(&s)) = (world.get(i), sigmas.get(i)) else {
+            continue;
+        };
+        let x = (fit.pose * p).coords;
+        let Some((_, jpix)) = project_in_front(camera, &x) else {
+            continue;
+        };
+        let j = jpix * point_jacobian(&x) / s;
+        h += j.transpose() * j;
+        if let Some(c) = covariances.get(i).copied().flatten() {
+            let g = jpix * rotation.matrix() / s;
+            from_points += j.transpose() * (g * c * g.transpose()) * j;
+        }
+    }
+    let Some(h_inv) = h.try_inverse() else {
+        return;
+    };
+    let model = h_inv * (h * cfg.sigma_px.powi(2) + from_points) * h_inv;
+    let total = at_least(&covariance, &model);
+    fit.covariance = Some(total);
+    fit.quality.uncertainty = pnp_uncertainty(&total);
+    if fit
+        .quality
+        .uncertainty
+        .rotation_sigma_deg
+        .is_some_and(|s| s > cfg.quality.max_rotation_sigma_deg)
+    {
+        fit.quality.flag(Reason::LargeUncertainty);
+    }
 }

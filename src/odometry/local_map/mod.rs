@@ -18,7 +18,7 @@
 
 use std::collections::{HashMap, VecDeque};
 
-use nalgebra::{Isometry3, Point3, Vector2, Vector3};
+use nalgebra::{Isometry3, Matrix3, Point3, Vector2, Vector3};
 use vofront_core::Camera;
 use vofront_features::{match_descriptors, Descriptor, Feature, Features, Match, MatchConfig};
 use vofront_geometry::triangulate::{parallax_deg, triangulate_dlt};
@@ -59,6 +59,10 @@ pub(crate) struct MapPoint {
     pub distance: f64,
     /// `(keyframe id, feature index)` of every observation.
     pub observations: Vec<(usize, u32)>,
+    /// Covariance of `position` (world frame, map units squared) when known: a stereo
+    /// point's depth noise along its ray, kept through structure refinement (an upper
+    /// bound then); `None` for triangulated points.
+    pub covariance: Option<Matrix3<f64>>,
     /// Frames in whose image the point was predicted.
     pub visible: u32,
     /// Frames in which it was matched and a PnP inlier.
@@ -163,11 +167,13 @@ impl LocalMap {
     }
 
     /// A new point at `position` observed by `(window index, feature)` pairs (the first gives
-    /// its descriptor); nothing without observations.
-    pub fn add_point(&mut self, position: Point3<f64>, observed: &[(usize, u32)]) {
-        let Some(&(k0, f0)) = observed.first() else {
-            return;
-        };
+    /// its descriptor), returned; nothing without observations.
+    pub fn add_point(
+        &mut self,
+        position: Point3<f64>,
+        observed: &[(usize, u32)],
+    ) -> Option<PointId> {
+        let &(k0, f0) = observed.first()?;
         let id = self.next_point;
         self.next_point += 1;
         let kf0 = &self.keyframes[k0];
@@ -178,6 +184,7 @@ impl LocalMap {
             recent: None,
             distance: (position - kf0.centre()).norm(),
             observations: Vec::with_capacity(observed.len()),
+            covariance: None,
             visible: 1,
             found: 1,
         };
@@ -187,6 +194,7 @@ impl LocalMap {
             point.observations.push((kf.id, f));
         }
         self.points.insert(id, point);
+        Some(id)
     }
 
     /// Records that `point` is observed by feature `f` of the keyframe at window index `k`.

@@ -112,6 +112,7 @@ fn the_expected_level_follows_the_distance_to_the_point() {
         recent: None,
         distance: 10.0,
         observations: Vec::new(),
+        covariance: None,
         visible: 1,
         found: 1,
     };

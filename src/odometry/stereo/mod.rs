@@ -38,11 +38,12 @@ pub(crate) mod rectified;
 
 use std::time::Instant;
 
-use nalgebra::{Isometry3, Point3};
+use nalgebra::{Isometry3, Matrix3, Point3};
 use thiserror::Error;
 use vofront_core::rig::Rig;
 use vofront_core::Camera;
 use vofront_features::{FeatureError, Features, Orb};
+use vofront_geometry::add_point_covariances;
 
 use super::coast::Coasting;
 use super::keyframe::KeyframeView;
@@ -216,12 +217,13 @@ impl StereoTracker {
         let StereoView {
             features,
             points,
+            covariances,
             right,
             ..
         } = view;
         let k = map.push_keyframe(t_wc, features, self.frame);
         map.keyframes[k].right = right;
-        let made = Self::add_stereo_points(&mut map, k, &points);
+        let made = Self::add_stereo_points(&mut map, k, &points, &covariances);
         if made < self.cfg.min_map_points {
             let why = VoError::TooFew {
                 what: "stereo points to start a map",
@@ -243,8 +245,14 @@ impl StereoTracker {
     }
 
     /// Makes the stereo `points` (keyframe camera) of the features of keyframe `k` that have
-    /// no map point yet map points; returns their count.
-    fn add_stereo_points(map: &mut LocalMap, k: usize, points: &[Option<Point3<f64>>]) -> usize {
+    /// no map point yet map points, with their `covariances` (same camera) turned into the
+    /// world frame (`R C R^T`); returns their count.
+    fn add_stereo_points(
+        map: &mut LocalMap,
+        k: usize,
+        points: &[Option<Point3<f64>>],
+        covariances: &[Option<Matrix3<f64>>],
+    ) -> usize {
         let kf = &map.keyframes[k];
         let t_wc = kf.t_wc;
         let free: Vec<(u32, Point3<f64>)> = points
@@ -253,8 +261,13 @@ impl StereoTracker {
             .filter_map(|(f, p)| Some((f as u32, (*p)?)))
             .filter(|(f, _)| kf.point_of[*f as usize].is_none())
             .collect();
+        let r = t_wc.rotation.to_rotation_matrix();
         for (f, p) in &free {
-            map.add_point(t_wc * p, &[(k, *f)]);
+            let id = map.add_point(t_wc * p, &[(k, *f)]);
+            let covariance = covariances[*f as usize].map(|c| r * c * r.transpose());
+            if let Some(point) = id.and_then(|id| map.points.get_mut(&id)) {
+                point.covariance = covariance;
+            }
         }
         free.len()
     }
@@ -286,13 +299,30 @@ impl StereoTracker {
             points: world,
             fit,
         } = search.locate(&query, &positions, &view.features, predicted);
-        let fit = match fit {
+        let mut fit = match fit {
             Ok(fit) => fit,
             Err(why) => {
                 self.lost.lose(map, self.coast.motion.step_length());
                 return FrameEstimate::lost(predicted, why.to_string(), start);
             }
         };
+        // The map points' own depth noise, which PnP takes as exact, widens the covariance.
+        let sigmas: Vec<f64> = matches
+            .iter()
+            .map(|m| f64::from(view.features.scales()[m.train as usize]))
+            .collect();
+        let covariances: Vec<Option<Matrix3<f64>>> = matches
+            .iter()
+            .map(|m| map.points.get(&ids[m.query as usize])?.covariance)
+            .collect();
+        add_point_covariances(
+            &mut fit,
+            camera,
+            &world,
+            &sigmas,
+            &covariances,
+            &self.cfg.pnp,
+        );
         if let Some(details) = &mut self.details {
             details.mark(&matches, &fit.inliers);
         }
@@ -325,6 +355,7 @@ impl StereoTracker {
             let StereoView {
                 features,
                 points,
+                covariances,
                 right,
                 ..
             } = view;
@@ -333,7 +364,7 @@ impl StereoTracker {
             for (m, id, _) in &tracked {
                 map.observe(*id, k, m.train);
             }
-            Self::add_stereo_points(&mut map, k, &points);
+            Self::add_stereo_points(&mut map, k, &points, &covariances);
             map.maintain(camera, &self.map_rules());
             if let (Some(ba), Some(r)) = (&self.cfg.local_ba, &self.rectified) {
                 map.adjust_window(camera, Some(r.baseline), ba);

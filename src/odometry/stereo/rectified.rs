@@ -1,7 +1,7 @@
 //! The stereo front of a frame: both images in the rectified geometry, ORB on each, the left
 //! features matched along their rows, and the metric point of every matched left feature.
 
-use nalgebra::{Isometry3, Point3, UnitQuaternion, Vector2, Vector3};
+use nalgebra::{Isometry3, Matrix3, Point3, UnitQuaternion, Vector2, Vector3};
 use thiserror::Error;
 use vofront_core::rectify::{RectifyError, StereoRectification};
 use vofront_core::rig::Rig;
@@ -45,6 +45,9 @@ pub(crate) struct StereoView {
     /// The metric point `P = Z K^-1 [u, v, 1]` (left rectified camera, metres) of each left
     /// feature matched in the right image, `Z = f b / d`.
     pub points: Vec<Option<Point3<f64>>>,
+    /// The covariance of each point (same camera, metres^2), its depth noise along its ray:
+    /// `(sigma_d / d)^2 P P^T`.
+    pub covariances: Vec<Option<Matrix3<f64>>>,
     /// The column in the rectified right image of each matched left feature, pixels.
     pub right: Vec<Option<f64>>,
     /// `(width, height)` of the rectified images, pixels.
@@ -170,6 +173,7 @@ impl Rectified {
         let (features, right_features) = (features?, right_features?);
         let matches = match_stereo(&features, &right_features, left, right, stereo)?;
         let mut points = vec![None; features.len()];
+        let mut covariances = vec![None; features.len()];
         let mut right = vec![None; features.len()];
         let k = &self.camera.pinhole;
         let sigma_of = |m: &StereoMatch| depth.disparity_sigma_px * f64::from(m.noise_scale);
@@ -182,13 +186,17 @@ impl Rectified {
                 f64::from(features.ys()[m.left as usize]),
             );
             let z = m.depth(self.fb);
+            let p = Point3::new((u - k.cx) / k.fx * z, (v - k.cy) / k.fy * z, z);
+            let relative = sigma_of(m) / f64::from(m.disparity);
             right[m.left as usize] = Some(f64::from(m.right_x));
-            points[m.left as usize] =
-                Some(Point3::new((u - k.cx) / k.fx * z, (v - k.cy) / k.fy * z, z));
+            points[m.left as usize] = Some(p);
+            covariances[m.left as usize] =
+                Some(relative * relative * p.coords * p.coords.transpose());
         }
         Ok(StereoView {
             features,
             points,
+            covariances,
             right,
             size: left.size(),
         })
