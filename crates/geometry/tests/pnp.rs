@@ -129,6 +129,20 @@ fn covariance_grows_with_noise() {
     assert!(trace(1.0) > 2.0 * trace(0.3));
 }
 
+/// `(e_phi^T C_phi^-1 e_phi, e_rho^T C_rho^-1 e_rho)`: the rotation and translation blocks'
+/// NEES of `fit` against the true `t_cw`, the error being the left increment
+/// `delta = log(T_true T_est^-1) = (rho, phi)` of the covariance's convention.
+fn nees_blocks(fit: &vofront_geometry::PnpResult, t_cw: &Isometry3<f64>) -> (f64, f64) {
+    let cov = fit.covariance.expect("a refined pose has a covariance");
+    let delta = vofront_geometry::lie::se3_log(&(t_cw * fit.pose.inverse()));
+    let block = |k: usize| {
+        let e = delta.fixed_rows::<3>(k).into_owned();
+        let c = cov.fixed_view::<3, 3>(k, k).into_owned();
+        e.dot(&(c.try_inverse().expect("invertible block") * e))
+    };
+    (block(3), block(0))
+}
+
 /// Mean NEES over its 3 degrees of freedom of the rotation and of the translation block of
 /// PnP's covariance over 200 scenes (80 points, 10% outliers, the TUM lens) at pixel noise
 /// `sigma`, with the inlier threshold at 4 sigma. The error is the left increment
@@ -147,15 +161,9 @@ fn pnp_nees(sigma: f64) -> (f64, f64) {
     for seed in 0..SEEDS {
         let (t_cw, world, px, _) = pnp_scene(7000 + seed, 80, 0.1, sigma, &cam);
         let fit = solve_pnp_ransac(&world, &px, &cam, None, &cfg).unwrap();
-        let cov = fit.covariance.expect("a refined pose has a covariance");
-        let delta = vofront_geometry::lie::se3_log(&(t_cw * fit.pose.inverse()));
-        let block = |k: usize| {
-            let e = delta.fixed_rows::<3>(k).into_owned();
-            let c = cov.fixed_view::<3, 3>(k, k).into_owned();
-            e.dot(&(c.try_inverse().expect("invertible block") * e))
-        };
-        trans += block(0);
-        rot += block(3);
+        let (r, t) = nees_blocks(&fit, &t_cw);
+        trans += t;
+        rot += r;
     }
     (rot / (3.0 * SEEDS as f64), trans / (3.0 * SEEDS as f64))
 }
@@ -222,15 +230,9 @@ fn pnp_nees_with_point_noise() -> [(f64, f64); 2] {
         let (s_own, s_wide) = (sigma(&fit), sigma(&raised));
         assert!(s_wide.0 >= s_own.0 * (1.0 - 1e-9) && s_wide.1 >= s_own.1 * (1.0 - 1e-9));
         for (sum, fit) in sums.iter_mut().zip([&fit, &raised]) {
-            let cov = fit.covariance.expect("a refined pose has a covariance");
-            let delta = vofront_geometry::lie::se3_log(&(t_cw * fit.pose.inverse()));
-            let block = |k: usize| {
-                let e = delta.fixed_rows::<3>(k).into_owned();
-                let c = cov.fixed_view::<3, 3>(k, k).into_owned();
-                e.dot(&(c.try_inverse().expect("invertible block") * e))
-            };
-            sum.0 += block(3) / (3.0 * SEEDS as f64);
-            sum.1 += block(0) / (3.0 * SEEDS as f64);
+            let (r, t) = nees_blocks(fit, &t_cw);
+            sum.0 += r / (3.0 * SEEDS as f64);
+            sum.1 += t / (3.0 * SEEDS as f64);
         }
     }
     sums
