@@ -351,6 +351,9 @@ pub(crate) struct Located {
     pub matches: Vec<Match>,
     /// The point of each match, in the frame the prior maps from.
     pub points: Vec<Point3<f64>>,
+    /// The pixel noise of each match's current keypoint (its pyramid level's scale), pixels:
+    /// the sigmas PnP weighted the match with.
+    pub sigmas: Vec<f64>,
     /// `T_cur_from`: the points' frame into the current camera.
     pub fit: Result<PnpResult, VoError>,
 }
@@ -460,6 +463,7 @@ impl PointLocator<'_> {
         Located {
             matches,
             points: world,
+            sigmas,
             fit,
         }
     }

@@ -203,6 +203,7 @@ impl MonoTracker {
             matches,
             points: world,
             fit,
+            ..
         } = located;
         let fit = match fit {
             Ok(fit) => fit,

@@ -297,6 +297,7 @@ impl StereoTracker {
         let Located {
             matches,
             points: world,
+            sigmas,
             fit,
         } = search.locate(&query, &positions, &view.features, predicted);
         let mut fit = match fit {
@@ -307,10 +308,6 @@ impl StereoTracker {
             }
         };
         // The map points' own depth noise, which PnP takes as exact, widens the covariance.
-        let sigmas: Vec<f64> = matches
-            .iter()
-            .map(|m| f64::from(view.features.scales()[m.train as usize]))
-            .collect();
         let covariances: Vec<Option<Matrix3<f64>>> = matches
             .iter()
             .map(|m| map.points.get(&ids[m.query as usize])?.covariance)
