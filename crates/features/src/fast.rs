@@ -373,13 +373,17 @@ fn suppress(scores: &[u16], w: usize, corners: &[usize]) -> Vec<Corner> {
         .filter(|&&c| {
             let s = scores[c];
             let (up, down) = (c - w, c + w);
-            let earlier =
-                s > scores[up - 1] && s > scores[up] && s > scores[up + 1] && s > scores[c - 1];
-            let later = s >= scores[c + 1]
-                && s >= scores[down - 1]
-                && s >= scores[down]
-                && s >= scores[down + 1];
-            earlier && later
+            // `&`, not `&&`: eight comparisons without a branch each (most corners are not
+            // maxima, and which comparison fails first is unpredictable).
+            let earlier = (s > scores[up - 1])
+                & (s > scores[up])
+                & (s > scores[up + 1])
+                & (s > scores[c - 1]);
+            let later = (s >= scores[c + 1])
+                & (s >= scores[down - 1])
+                & (s >= scores[down])
+                & (s >= scores[down + 1]);
+            earlier & later
         })
         .map(|&c| Corner {
             x: (c % w) as u32,
@@ -387,7 +391,10 @@ fn suppress(scores: &[u16], w: usize, corners: &[usize]) -> Vec<Corner> {
             score: scores[c],
         })
         .collect();
-    out.sort_unstable_by_key(|c| (c.y, c.x));
+    // Only the threshold fallback's cells come out of raster order.
+    if !out.windows(2).all(|p| (p[0].y, p[0].x) <= (p[1].y, p[1].x)) {
+        out.sort_unstable_by_key(|c| (c.y, c.x));
+    }
     out
 }
 

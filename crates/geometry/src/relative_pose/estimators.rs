@@ -70,32 +70,84 @@ impl Estimator for EssentialEstimator<'_> {
     }
 
     fn score(&self, e: &Matrix3<f64>, threshold_sq: f64, bound: f64) -> (f64, usize) {
-        // Branch-free f32 loop over blocks (vectorises); early exit between blocks once the
-        // truncated cost exceeds the best score.
         let m: [f32; 9] = row_major(e).map(|v| v as f32);
-        let t = threshold_sq as f32;
-        let mut cost = 0.0f64;
-        let mut inliers = 0usize;
-        for block in self.0.packed().chunks(128) {
-            let mut acc = 0.0f32;
-            let mut count = 0u32;
-            for p in block {
-                let [u1, v1, u2, v2] = *p;
-                // Unchecked `c^2 / D`: a degenerate one is NaN or infinite and fails `r < t`
-                // (an outlier, as `crate::residual` decides).
-                let r = Epipolar::new(&m, u1, v1, u2, v2).ratio();
-                let inside = r < t;
-                acc += if inside { r } else { t };
-                count += inside as u32;
-            }
-            cost += acc as f64;
-            inliers += count as usize;
-            if cost > bound {
-                return (f64::INFINITY, inliers);
+        truncated_sampson(self.0.packed(), &m, threshold_sq as f32, bound)
+    }
+}
+
+/// The truncated Sampson cost `sum_i min(c_i^2 / D_i, t)` of the packed `[u1, v1, u2, v2]`
+/// correspondences under the row-major `m` and the number of them with `c_i^2 / D_i < t`;
+/// `(inf, count so far)` as soon as the cost exceeds `bound`. Runs the AVX2 + FMA compilation of
+/// [`truncated_sampson_portable`] when the CPU has them (the same arithmetic, so the same result).
+fn truncated_sampson(packed: &[[f32; 4]], m: &[f32; 9], t: f32, bound: f64) -> (f64, usize) {
+    #[cfg(target_arch = "x86_64")]
+    {
+        if std::arch::is_x86_feature_detected!("avx2") && std::arch::is_x86_feature_detected!("fma")
+        {
+            // SAFETY: the CPU supports AVX2 and FMA, checked just above.
+            return unsafe { truncated_sampson_avx2(packed, m, t, bound) };
+        }
+    }
+    truncated_sampson_portable(packed, m, t, bound)
+}
+
+/// [`truncated_sampson_portable`] compiled for AVX2 and FMA (8 correspondences per register).
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2,fma")]
+unsafe fn truncated_sampson_avx2(
+    packed: &[[f32; 4]],
+    m: &[f32; 9],
+    t: f32,
+    bound: f64,
+) -> (f64, usize) {
+    truncated_sampson_portable(packed, m, t, bound)
+}
+
+/// Correspondences per group of [`truncated_sampson_portable`]: one AVX2 register of `f32`.
+const LANES: usize = 8;
+
+/// The portable body of [`truncated_sampson`]: branch-free `f32` sums in `LANES` independent
+/// lanes (a single running sum would be a sequential chain the compiler may not reorder, so it
+/// would not vectorise), with the early exit between blocks of 128.
+#[inline(always)]
+fn truncated_sampson_portable(
+    packed: &[[f32; 4]],
+    m: &[f32; 9],
+    t: f32,
+    bound: f64,
+) -> (f64, usize) {
+    // Unchecked `c^2 / D`: a degenerate one is NaN or infinite and fails `r < t` (an outlier,
+    // as `crate::residual` decides); returns `(min(r, t), r < t)`.
+    let truncated = |p: &[f32; 4]| {
+        let r = Epipolar::new(m, p[0], p[1], p[2], p[3]).ratio();
+        let inside = r < t;
+        (if inside { r } else { t }, inside as u32)
+    };
+    let mut cost = 0.0f64;
+    let mut inliers = 0usize;
+    for block in packed.chunks(128) {
+        let mut acc = [0.0f32; LANES];
+        let mut count = [0u32; LANES];
+        let mut groups = block.chunks_exact(LANES);
+        for group in &mut groups {
+            for i in 0..LANES {
+                let (r, inside) = truncated(&group[i]);
+                acc[i] += r;
+                count[i] += inside;
             }
         }
-        (cost, inliers)
+        for (i, p) in groups.remainder().iter().enumerate() {
+            let (r, inside) = truncated(p);
+            acc[i] += r;
+            count[i] += inside;
+        }
+        cost += acc.iter().map(|&a| f64::from(a)).sum::<f64>();
+        inliers += count.iter().sum::<u32>() as usize;
+        if cost > bound {
+            return (f64::INFINITY, inliers);
+        }
     }
+    (cost, inliers)
 }
 
 /// A homography and its inverse.
@@ -161,5 +213,56 @@ impl Estimator for HomographyEstimator<'_> {
 
     fn residual_sq(&self, m: &HomographyModel, i: usize) -> f64 {
         m.residual_sq(self.0, i)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use rand::{rngs::StdRng, Rng, SeedableRng};
+
+    /// Random correspondences (a few exactly degenerate, `D = 0` under `m`) and a random `E`.
+    fn problem(n: usize, seed: u64) -> (Vec<[f32; 4]>, [f32; 9]) {
+        let mut rng = StdRng::seed_from_u64(seed);
+        let m: [f32; 9] = std::array::from_fn(|_| rng.random_range(-1.0..1.0));
+        let packed = (0..n)
+            .map(|i| {
+                if i % 97 == 0 {
+                    [0.0; 4]
+                } else {
+                    std::array::from_fn(|_| rng.random_range(-0.5..0.5))
+                }
+            })
+            .collect();
+        (packed, [m[0], m[1], 0.0, m[3], m[4], 0.0, 0.0, 0.0, 0.0])
+    }
+
+    #[test]
+    fn dispatched_and_portable_scores_agree_with_a_plain_sum() {
+        for (n, seed) in [(0, 1), (5, 2), (131, 3), (1000, 4)] {
+            let (packed, m) = problem(n, seed);
+            let t = 1e-3f32;
+            let dispatched = truncated_sampson(&packed, &m, t, f64::INFINITY);
+            let portable = truncated_sampson_portable(&packed, &m, t, f64::INFINITY);
+            assert_eq!(dispatched, portable);
+            let (mut plain, mut count) = (0.0f64, 0usize);
+            for p in &packed {
+                let r = Epipolar::new(&m, p[0], p[1], p[2], p[3]).ratio();
+                if r < t {
+                    plain += f64::from(r);
+                    count += 1;
+                } else {
+                    plain += f64::from(t);
+                }
+            }
+            assert_eq!(dispatched.1, count);
+            assert!((dispatched.0 - plain).abs() <= 1e-5 * plain.max(1.0));
+            if n == 1000 {
+                assert!(count > 100 && count < 900, "a mix of inliers and outliers");
+                let stopped = truncated_sampson(&packed, &m, t, 0.25 * plain);
+                assert_eq!(stopped.0, f64::INFINITY);
+                assert!(stopped.1 < count);
+            }
+        }
     }
 }
