@@ -27,7 +27,7 @@ use std::time::Instant;
 use nalgebra::{Isometry3, Vector2};
 use thiserror::Error;
 use vofront_core::rig::Rig;
-use vofront_direct::{InverseDepthPoint, Se3Config, Se3Reference};
+use vofront_direct::{CalibrationPrior, InverseDepthPoint, Se3Config, Se3Reference};
 use vofront_image::disparity::{match_pixels, select_pixels, DisparityConfig};
 use vofront_image::{Image, ImageError};
 use vofront_robust::{QualityConfig, Verdict};
@@ -73,6 +73,11 @@ impl Default for DirectStereoConfig {
         Self {
             se3: Se3Config {
                 max_depth: 200.0,
+                // Z = f b / d: the depths follow the focal length and the baseline.
+                calibration: CalibrationPrior {
+                    depth_from_disparity: true,
+                    ..CalibrationPrior::default()
+                },
                 ..Se3Config::default()
             },
             disparity: DisparityConfig::default(),

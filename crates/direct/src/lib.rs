@@ -54,8 +54,8 @@ pub use plane::Plane;
 pub use plane::{Gradients, Pyramid};
 pub use rgbd::{RgbdFrame, Undistorter};
 pub use se3::{
-    align_se3, photometric_residual_map, InverseDepthPoint, PixelResidual, Se3Config, Se3Reference,
-    Se3Result,
+    align_se3, photometric_residual_map, CalibrationPrior, InverseDepthPoint, PixelResidual,
+    Se3Config, Se3Reference, Se3Result,
 };
 pub use translation::{align_translation, TranslationConfig, TranslationResult};
 #[allow(deprecated)]

@@ -1,7 +1,7 @@
 //! Settings of the direct monocular tracker.
 
 use vofront_direct::mono::{DepthRules, SelectConfig};
-use vofront_direct::Se3Config;
+use vofront_direct::{CalibrationPrior, Se3Config};
 use vofront_features::{MatchConfig, OrbConfig};
 use vofront_geometry::RelativePoseConfig;
 use vofront_robust::QualityConfig;
@@ -59,6 +59,11 @@ impl Default for DirectMonoConfig {
             se3: Se3Config {
                 min_depth: 1e-3,
                 max_depth: 1e6,
+                // The depths are the map's own, scale-free: no depth-scale error of a sensor.
+                calibration: CalibrationPrior {
+                    depth_scale: 0.0,
+                    ..CalibrationPrior::default()
+                },
                 ..Se3Config::default()
             },
             select: SelectConfig::default(),

@@ -15,7 +15,7 @@
 //! re-estimated every iteration, normal equations reduced in parallel), coarse to fine, from the
 //! prior pose, with `(a, b)` estimated only at the `brightness_levels` finest levels. Module
 //! `level` holds the residuals and Jacobian rows of one level; the result's covariance is the
-//! robust crate's sandwich covariance.
+//! robust crate's sandwich covariance plus the calibration's share (module `calibration`).
 
 use std::sync::Arc;
 
@@ -30,11 +30,14 @@ use crate::plane::Bilinear;
 use crate::quality::{intensity_variance, se3_quality, Se3Stats};
 use crate::rgbd::{pinhole_image, RgbdFrame, Undistorter};
 
+mod calibration;
 mod level;
 mod residuals;
 mod select;
 mod sparse;
 
+use calibration::calibration_covariance;
+pub use calibration::CalibrationPrior;
 use level::{Se3Level, Se3State};
 pub use residuals::PixelResidual;
 use select::{level_intrinsics, select_level, RefLevel};
@@ -93,6 +96,10 @@ pub struct Se3Config {
     pub inlier_sigmas: f32,
     /// Thresholds of the result's [`Se3Result::quality`] verdict.
     pub quality: QualityConfig,
+    /// How well the intrinsics and the depth scale are known; the covariance includes what
+    /// their errors move ([`CalibrationPrior`]). [`CalibrationPrior::exact`] for rendered
+    /// scenes.
+    pub calibration: CalibrationPrior,
 }
 
 impl Default for Se3Config {
@@ -115,6 +122,7 @@ impl Default for Se3Config {
             max_condition: 1e10,
             inlier_sigmas: 3.0,
             quality: QualityConfig::default(),
+            calibration: CalibrationPrior::default(),
         }
     }
 }
@@ -144,8 +152,9 @@ pub struct Se3Result {
     /// Valid residuals at full resolution.
     pub valid_pixels: usize,
     /// Covariance of the left pose increment `(rho, phi)`, metres and radians, marginal over
-    /// the brightness: the M-estimator's sandwich `B^-1 M B^-1` at full resolution (module
-    /// `covariance`), for independent residuals. The error is `T_est = exp(e) T_true`,
+    /// the brightness: the M-estimator's sandwich `B^-1 M B^-1` at full resolution (the
+    /// robust crate's `sandwich`), for independent residuals, plus what the calibration's
+    /// uncertainty moves, `V S V^T` ([`Se3Config::calibration`], [`CalibrationPrior`]). The error is `T_est = exp(e) T_true`,
     /// `e ~ N(0, covariance)`. `None` (unknown) when the final normal equations are singular or
     /// ill-conditioned, or the robust Hessian `B` is not positive definite.
     pub covariance: Option<Matrix6<f64>>,
@@ -315,7 +324,17 @@ impl Se3Reference {
                         f64::from(out.scale),
                         &level_settings.fixed,
                     )
-                    .map(|c| c.fixed_view::<6, 6>(0, 0).into_owned())
+                    .map(|c| {
+                        c.fixed_view::<6, 6>(0, 0).into_owned()
+                            + calibration_covariance(
+                                &problem,
+                                &state,
+                                &cfg.loss,
+                                f64::from(out.scale),
+                                &level_settings.fixed,
+                                &cfg.calibration,
+                            )
+                    })
                 });
                 let gain_ok = state.a >= 1.0 / cfg.max_gain && state.a <= cfg.max_gain;
                 if cfg.affine_brightness && !gain_ok {
