@@ -2,13 +2,16 @@
 //! stereo drive and room, the metric `feature_stereo` pose recovers the exact `T_21` in metres,
 //! and so does the direct SE(3) pose on frame 1's stereo depth in the room (on the drive, 2 m
 //! ahead, it may fail but is never `ok` and wrong); the metric pose agrees with the epipolar
-//! one, and is flagged `inconsistent` against an epipolar pose it contradicts; bad stereo
+//! one, and is flagged `inconsistent` against an epipolar pose it contradicts (the direct pose
+//! is compared in the same way); bad stereo
 //! input is a typed error in its own entry, never a pose.
 
 use nalgebra::{Isometry3, UnitQuaternion, Vector3};
 use vofront::fixtures::image2d::to_gray8;
 use vofront::fixtures::stereo::StereoSequence;
-use vofront::two_view::stereo::{check_against_epipolar, StereoFirst, MAX_DISAGREEMENT_SIGMAS};
+use vofront::two_view::stereo::{
+    check_against_epipolar, epipolar_disagreement_sigmas, StereoFirst, MAX_DISAGREEMENT_SIGMAS,
+};
 use vofront::two_view::{estimate, Inputs, Method, Outcome};
 use vofront_core::{Camera, Distortion, Lens};
 use vofront_robust::{Reason, Verdict};
@@ -125,6 +128,43 @@ fn a_metric_pose_that_contradicts_the_epipolar_one_is_inconsistent() {
     check_against_epipolar(&mut checked, &unjudged);
     assert_eq!(checked.epipolar_disagreement_sigmas, None);
     assert!(checked.pnp.quality.is_ok());
+}
+
+/// The direct SE(3) pose on frame 1's stereo depth answers to the epipolar pose in the same
+/// way: in the room it agrees with it (and stays `ok` in the outcome), and an epipolar pose
+/// turned by 1 degree of yaw or 20 degrees of direction puts it beyond
+/// [`MAX_DISAGREEMENT_SIGMAS`], which `estimate` flags `inconsistent`.
+#[test]
+fn the_direct_metric_pose_is_compared_with_the_epipolar_one() {
+    let seq = StereoSequence::room(5, 6);
+    let outcome = pair(&seq, 5, seq.camera, seq.baseline);
+    let (se3, _) = outcome.se3.expect("ran").expect("direct pose");
+    let epipolar = outcome
+        .feature
+        .expect("ran")
+        .expect("epipolar pose")
+        .estimate;
+    assert!(
+        epipolar.quality.is_ok() && se3.quality.is_ok(),
+        "{:?} {:?}",
+        epipolar.quality,
+        se3.quality
+    );
+    let disagreement = |e: &vofront::geometry::RelativePose| {
+        epipolar_disagreement_sigmas(&se3.pose, &se3.quality, se3.covariance.as_ref(), e)
+            .expect("compared")
+    };
+    assert!(disagreement(&epipolar) < MAX_DISAGREEMENT_SIGMAS);
+    let mut turned = epipolar.clone();
+    turned.pose.rotation = UnitQuaternion::from_axis_angle(&Vector3::y_axis(), 1f64.to_radians())
+        * turned.pose.rotation;
+    let mut swerved = epipolar.clone();
+    swerved.pose.translation.vector =
+        UnitQuaternion::from_axis_angle(&Vector3::y_axis(), 20f64.to_radians())
+            * swerved.pose.translation.vector;
+    for contradicting in [&turned, &swerved] {
+        assert!(disagreement(contradicting) > MAX_DISAGREEMENT_SIGMAS);
+    }
 }
 
 #[test]

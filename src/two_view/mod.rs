@@ -15,17 +15,20 @@ use serde::Serialize;
 use thiserror::Error;
 use vofront_core::Camera;
 use vofront_direct::{
-    align_se3, align_translation, DirectError, RgbdFrame, Se3Config, Se3Result, TranslationConfig,
-    TranslationResult,
+    align_se3, align_translation, CalibrationPrior, DirectError, RgbdFrame, Se3Config, Se3Result,
+    TranslationConfig, TranslationResult,
 };
 use vofront_image::Image;
-use vofront_robust::Quality;
+use vofront_robust::{Quality, Reason};
 
 use crate::error::VoError;
 use crate::pipeline::{FeaturePose, TwoViewEstimator};
 use crate::report::two_view::TwoViewReport;
 use crate::timing::ms_since;
-use stereo::{check_against_epipolar, stereo_depth, stereo_pose, StereoFirst, StereoPose};
+use stereo::{
+    check_against_epipolar, epipolar_disagreement_sigmas, stereo_depth, stereo_pose, StereoFirst,
+    StereoPose,
+};
 
 /// Which estimators [`estimate`] runs (`vofront two-view --method`, Python
 /// `two_view(method=...)`), parsed from and shown as [`Method::name`].
@@ -313,7 +316,15 @@ pub fn estimate(inputs: &Inputs) -> Outcome {
         ),
         (None, _) => None,
     };
-    let se3 = run_direct.then_some(()).and(depth1).map(|depth| {
+    // Depth from frame 1's disparity follows the focal length (`Z = f b / d`).
+    let cfg = Se3Config {
+        calibration: CalibrationPrior {
+            depth_from_disparity: inputs.depth1.is_none(),
+            ..CalibrationPrior::default()
+        },
+        ..Se3Config::default()
+    };
+    let mut se3 = run_direct.then_some(()).and(depth1).map(|depth| {
         let depth = depth?;
         check_same_size(&inputs.img1, inputs.img2.size(), "frame 2")?;
         check_same_size(&inputs.img1, depth.size(), "depth")?;
@@ -321,12 +332,26 @@ pub fn estimate(inputs: &Inputs) -> Outcome {
         let ((fit, reference), ms) = timed(|| {
             let reference = RgbdFrame::new(inputs.img1.to_f32(), depth, &inputs.camera)?;
             let prior = Isometry3::identity();
-            let fit = align_se3(&reference, &current, &prior, &Se3Config::default())?;
+            let fit = align_se3(&reference, &current, &prior, &cfg)?;
             Ok::<_, DirectError>((fit, reference))
         })?;
         se3_reference = Some(reference);
         Ok((fit, ms))
     });
+    // The metric direct pose answers to the epipolar one as `feature_stereo` does: from the
+    // identity start a long forward step can leave the alignment in a nearby minimum that fits
+    // the images as well as the truth would (a highway's road and sky).
+    if let (Some(Ok((fit, _))), Some(Ok(epipolar))) = (&mut se3, &feature) {
+        let sigmas = epipolar_disagreement_sigmas(
+            &fit.pose,
+            &fit.quality,
+            fit.covariance.as_ref(),
+            &epipolar.estimate,
+        );
+        if sigmas.is_some_and(|s| s > stereo::MAX_DISAGREEMENT_SIGMAS) {
+            fit.quality.flag(Reason::Inconsistent);
+        }
+    }
     Outcome {
         feature,
         feature_stereo,

@@ -23,14 +23,14 @@
 
 use std::time::Instant;
 
-use nalgebra::{Isometry3, Matrix3, Translation3, Vector3};
+use nalgebra::{Isometry3, Matrix3, Matrix6, Translation3, Vector3};
 use vofront_core::rig::Rig;
 use vofront_core::Camera;
 use vofront_features::{match_descriptors, Orb};
 use vofront_geometry::{solve_pnp_ransac_with_sigmas, PnpResult, RelativePose};
 use vofront_image::disparity::{match_pixels, select_pixels, DisparityConfig};
 use vofront_image::Image;
-use vofront_robust::Reason;
+use vofront_robust::{Quality, Reason};
 
 use crate::error::VoError;
 use crate::odometry::mono::KEYPOINT_QUANTISATION_PX;
@@ -73,55 +73,66 @@ pub struct StereoPose {
 pub const MAX_DISAGREEMENT_SIGMAS: f64 = 10.0;
 
 /// Compares the metric pose `stereo` with the `ok` epipolar estimate `epipolar` of the same
-/// pair (both `T_21`):
-/// - rotation: `angle(R_s R_e^T) / hypot(sigma_s, sigma_e)`, the sigmas RMS rotation sigmas;
-/// - direction, when both translate: `angle(t_s, t_e) / hypot(sigma_s, sigma_e)`, the
-///   stereo direction sigma `sqrt(trace(P C_t P)) / |t_s|` with `C_t` the translation block
-///   of PnP's covariance and `P = I - n n^T` the projection across `n = t_s / |t_s|`.
-///
-/// Records the larger ratio in `stereo` and flags its quality [`Reason::Inconsistent`] when it
-/// exceeds [`MAX_DISAGREEMENT_SIGMAS`]. Nothing is checked when `epipolar` is not `ok` or a
-/// sigma is unknown.
+/// pair ([`epipolar_disagreement_sigmas`] with PnP's pose, quality and covariance): records the
+/// figure in `stereo` and flags its quality [`Reason::Inconsistent`] when it exceeds
+/// [`MAX_DISAGREEMENT_SIGMAS`].
 pub fn check_against_epipolar(stereo: &mut StereoPose, epipolar: &RelativePose) {
-    if !epipolar.quality.is_ok() {
-        return;
-    }
-    let (s, e) = (&stereo.pnp.pose, &epipolar.pose);
-    let (q_s, q_e) = (
-        &stereo.pnp.quality.uncertainty,
-        &epipolar.quality.uncertainty,
-    );
-    let (Some(rot_s), Some(rot_e)) = (q_s.rotation_sigma_deg, q_e.rotation_sigma_deg) else {
+    let pnp = &mut stereo.pnp;
+    let Some(sigmas) =
+        epipolar_disagreement_sigmas(&pnp.pose, &pnp.quality, pnp.covariance.as_ref(), epipolar)
+    else {
         return;
     };
-    let rotation = (s.rotation * e.rotation.inverse()).angle().to_degrees();
+    stereo.epipolar_disagreement_sigmas = Some(sigmas);
+    if sigmas > MAX_DISAGREEMENT_SIGMAS {
+        pnp.quality.flag(Reason::Inconsistent);
+    }
+}
+
+/// How far a metric pose `pose` (`T_21`, with its `quality` and the 6x6 covariance of its left
+/// increment `(rho, phi)`) is from the `ok` epipolar estimate `epipolar` of the same pair, in
+/// combined stated sigmas, the larger of
+/// - rotation: `angle(R_s R_e^T) / hypot(sigma_s, sigma_e)`, the sigmas RMS rotation sigmas;
+/// - direction, when both translate: `angle(t_s, t_e) / hypot(sigma_s, sigma_e)`, the metric
+///   direction sigma `sqrt(trace(P C_t P)) / |t_s|` with `C_t` the translation block of the
+///   covariance and `P = I - n n^T` the projection across `n = t_s / |t_s|`.
+///
+/// `None` (nothing checked) when `epipolar` is not `ok` or a rotation sigma is unknown.
+pub fn epipolar_disagreement_sigmas(
+    pose: &Isometry3<f64>,
+    quality: &Quality,
+    covariance: Option<&Matrix6<f64>>,
+    epipolar: &RelativePose,
+) -> Option<f64> {
+    if !epipolar.quality.is_ok() {
+        return None;
+    }
+    let e = &epipolar.pose;
+    let q_e = &epipolar.quality.uncertainty;
+    let rot_s = quality.uncertainty.rotation_sigma_deg?;
+    let rot_e = q_e.rotation_sigma_deg?;
+    let rotation = (pose.rotation * e.rotation.inverse()).angle().to_degrees();
     let mut sigmas = rotation / rot_s.hypot(rot_e);
-    let (t_s, t_e) = (s.translation.vector, e.translation.vector);
-    let dir_e = q_e.translation_direction_sigma_deg;
-    if let (Some(dir_s), Some(dir_e)) = (direction_sigma_deg(&stereo.pnp, &t_s), dir_e) {
+    let (t_s, t_e) = (pose.translation.vector, e.translation.vector);
+    let dir_s = covariance.and_then(|c| direction_sigma_deg(c, &t_s));
+    if let (Some(dir_s), Some(dir_e)) = (dir_s, q_e.translation_direction_sigma_deg) {
         if t_e.norm() > 0.0 {
             let direction = t_s.angle(&t_e).to_degrees();
             sigmas = sigmas.max(direction / dir_s.hypot(dir_e));
         }
     }
-    if !sigmas.is_finite() {
-        return;
-    }
-    stereo.epipolar_disagreement_sigmas = Some(sigmas);
-    if sigmas > MAX_DISAGREEMENT_SIGMAS {
-        stereo.pnp.quality.flag(Reason::Inconsistent);
-    }
+    sigmas.is_finite().then_some(sigmas)
 }
 
-/// RMS standard deviation of the direction of PnP's translation `t` (degrees), from the
-/// translation block of its covariance across `t`; `None` without a covariance or a
+/// RMS standard deviation of the direction of the translation `t` (degrees), from the
+/// translation block of the pose covariance `covariance` across `t`; `None` without a
 /// translation.
-fn direction_sigma_deg(pnp: &PnpResult, t: &Vector3<f64>) -> Option<f64> {
+fn direction_sigma_deg(covariance: &Matrix6<f64>, t: &Vector3<f64>) -> Option<f64> {
     let length = t.norm();
     if length == 0.0 {
         return None;
     }
-    let c_t: Matrix3<f64> = pnp.covariance?.fixed_view::<3, 3>(0, 0).into_owned();
+    let c_t: Matrix3<f64> = covariance.fixed_view::<3, 3>(0, 0).into_owned();
     let n = t / length;
     let across = Matrix3::identity() - n * n.transpose();
     let variance = (across * c_t * across).trace().max(0.0);
