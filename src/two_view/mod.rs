@@ -4,19 +4,19 @@
 //! [`crate::report::two_view::TwoViewReport`]. With frame 1's right image ([`Inputs::stereo`])
 //! the pair's estimates are metric ([`stereo`]).
 
+pub mod basin;
 pub mod stereo;
 
 use std::fmt;
 use std::str::FromStr;
 use std::time::Instant;
 
-use nalgebra::Isometry3;
 use serde::Serialize;
 use thiserror::Error;
 use vofront_core::Camera;
 use vofront_direct::{
-    align_se3, align_translation, CalibrationPrior, DirectError, RgbdFrame, Se3Config, Se3Result,
-    TranslationConfig, TranslationResult,
+    align_translation, CalibrationPrior, DirectError, RgbdFrame, Se3Config, Se3Reference,
+    Se3Result, TranslationConfig, TranslationResult,
 };
 use vofront_image::Image;
 use vofront_robust::{Quality, Reason};
@@ -331,8 +331,16 @@ pub fn estimate(inputs: &Inputs) -> Outcome {
         let current = inputs.img2.to_f32();
         let ((fit, reference), ms) = timed(|| {
             let reference = RgbdFrame::new(inputs.img1.to_f32(), depth, &inputs.camera)?;
-            let prior = Isometry3::identity();
-            let fit = align_se3(&reference, &current, &prior, &cfg)?;
+            let mut depths: Vec<f64> = reference
+                .depth()
+                .data()
+                .iter()
+                .filter(|z| (cfg.min_depth..=cfg.max_depth).contains(*z))
+                .map(|&z| f64::from(z))
+                .collect();
+            let median_depth = crate::robust::median_in_place(&mut depths).unwrap_or(f64::NAN);
+            let selected = Se3Reference::new(&reference, &cfg)?;
+            let fit = basin::align_from_identity(&selected, &current, median_depth, &cfg)?;
             Ok::<_, DirectError>((fit, reference))
         })?;
         se3_reference = Some(reference);

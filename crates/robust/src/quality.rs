@@ -67,9 +67,10 @@ pub enum Reason {
     /// The predicted rotation standard deviation exceeds
     /// [`QualityConfig::max_rotation_sigma_deg`] (unreliable).
     LargeUncertainty,
-    /// Another estimate of the same motion from the same images, made with another model,
-    /// disagrees with this one far beyond their stated uncertainties (unreliable): one of the
-    /// two is wrong, and the data alone do not say which.
+    /// Another estimate of the same motion from the same images, made with another model or
+    /// by the same estimator from another start, disagrees with this one far beyond their
+    /// stated uncertainties (unreliable): one of the two is wrong, and the data alone do not
+    /// say which.
     Inconsistent,
 }
 
