@@ -91,7 +91,7 @@ impl CalibrationPrior {
 /// Sensitivity `V` (8x4: pose increment `(rho, phi)`, brightness `(a, b)` by `(s, c_x, c_y,
 /// beta)`) of the estimate `state` of the level's valid residuals, robust `loss` at `scale`;
 /// parameters in `fixed` do not move. `None` when `B` is not invertible.
-pub(super) fn calibration_sensitivity(
+fn calibration_sensitivity(
     level: &Se3Level<'_>,
     state: &Se3State,
     loss: &Loss,
