@@ -98,16 +98,6 @@ pub struct DirectTracker {
     details: Option<FrameDetails>,
 }
 
-fn median_depth(depth: &Image<f32>) -> f64 {
-    let mut valid: Vec<f64> = depth
-        .data()
-        .iter()
-        .filter(|z| **z > 0.0 && z.is_finite())
-        .map(|&z| z as f64)
-        .collect();
-    crate::robust::median_in_place(&mut valid).unwrap_or(1.0)
-}
-
 impl DirectTracker {
     /// A tracker for frames of `camera` (with lens distortion, frames are undistorted once).
     pub fn new(camera: Camera, cfg: DirectTrackerConfig) -> Self {
@@ -135,7 +125,7 @@ impl DirectTracker {
         Ok(Keyframe {
             reference,
             t_wc,
-            median_depth: median_depth(rgbd.depth()),
+            median_depth: rgbd.median_depth(),
             selected,
             first_residual: None,
         })

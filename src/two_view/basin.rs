@@ -9,14 +9,17 @@
 //! the TUM pairs, the same to 0.1 mm); where a displaced start ends elsewhere, beyond
 //! [`MAX_DISAGREEMENT_SIGMAS`] of the pose's stated sigmas, with a fit that is not `failed`,
 //! the images admit more than one answer and the pose is flagged [`Reason::Inconsistent`].
+//!
+//! [`MAX_DISAGREEMENT_SIGMAS`]: super::stereo::MAX_DISAGREEMENT_SIGMAS
+//! [`Reason::Inconsistent`]: vofront_robust::Reason::Inconsistent
 
 use nalgebra::Isometry3;
 use vofront_core::lie::se3_log;
 use vofront_direct::{DirectError, Se3Config, Se3Reference, Se3Result};
 use vofront_image::Image;
-use vofront_robust::{Reason, Verdict};
+use vofront_robust::Verdict;
 
-use super::stereo::MAX_DISAGREEMENT_SIGMAS;
+use super::stereo::flag_if_inconsistent;
 
 /// Displacement of the extra starts along the optical axis, as a fraction of the reference's
 /// median depth: within the basin of a well-posed pair (a few percent of the depth is a few
@@ -53,9 +56,9 @@ pub fn basin_disagreement_sigmas(fit: &Se3Result, others: &[Se3Result]) -> Optio
 }
 
 /// Aligns `current` to `reference` from the identity and, when that fit is `ok`, again from
-/// [`displaced_starts`] of `median_depth` (the two at once); flags the fit [`Reason::Inconsistent`] when the
-/// others disagree with it beyond [`MAX_DISAGREEMENT_SIGMAS`]
-/// ([`basin_disagreement_sigmas`]). Errors of the identity start only.
+/// [`displaced_starts`] of `median_depth` (the two at once); flags the fit inconsistent when
+/// the others disagree with it too far ([`basin_disagreement_sigmas`],
+/// [`flag_if_inconsistent`]). Errors of the identity start only.
 pub fn align_from_identity(
     reference: &Se3Reference,
     current: &Image<f32>,
@@ -72,8 +75,7 @@ pub fn align_from_identity(
         || reference.align(current, &behind, cfg),
     );
     let others: Vec<Se3Result> = [a, b].into_iter().filter_map(Result::ok).collect();
-    if basin_disagreement_sigmas(&fit, &others).is_some_and(|s| s > MAX_DISAGREEMENT_SIGMAS) {
-        fit.quality.flag(Reason::Inconsistent);
-    }
+    let sigmas = basin_disagreement_sigmas(&fit, &others);
+    flag_if_inconsistent(&mut fit.quality, sigmas);
     Ok(fit)
 }

@@ -19,15 +19,15 @@ use vofront_direct::{
     Se3Result, TranslationConfig, TranslationResult,
 };
 use vofront_image::Image;
-use vofront_robust::{Quality, Reason};
+use vofront_robust::Quality;
 
 use crate::error::VoError;
 use crate::pipeline::{FeaturePose, TwoViewEstimator};
 use crate::report::two_view::TwoViewReport;
 use crate::timing::ms_since;
 use stereo::{
-    check_against_epipolar, epipolar_disagreement_sigmas, stereo_depth, stereo_pose, StereoFirst,
-    StereoPose,
+    check_against_epipolar, epipolar_disagreement_sigmas, flag_if_inconsistent, stereo_depth,
+    stereo_pose, StereoFirst, StereoPose,
 };
 
 /// Which estimators [`estimate`] runs (`vofront two-view --method`, Python
@@ -331,15 +331,8 @@ pub fn estimate(inputs: &Inputs) -> Outcome {
         let current = inputs.img2.to_f32();
         let ((fit, reference), ms) = timed(|| {
             let reference = RgbdFrame::new(inputs.img1.to_f32(), depth, &inputs.camera)?;
-            let mut depths: Vec<f64> = reference
-                .depth()
-                .data()
-                .iter()
-                .filter(|z| (cfg.min_depth..=cfg.max_depth).contains(*z))
-                .map(|&z| f64::from(z))
-                .collect();
-            let median_depth = crate::robust::median_in_place(&mut depths).unwrap_or(f64::NAN);
             let selected = Se3Reference::new(&reference, &cfg)?;
+            let median_depth = reference.median_depth();
             let fit = basin::align_from_identity(&selected, &current, median_depth, &cfg)?;
             Ok::<_, DirectError>((fit, reference))
         })?;
@@ -356,9 +349,7 @@ pub fn estimate(inputs: &Inputs) -> Outcome {
             fit.covariance.as_ref(),
             &epipolar.estimate,
         );
-        if sigmas.is_some_and(|s| s > stereo::MAX_DISAGREEMENT_SIGMAS) {
-            fit.quality.flag(Reason::Inconsistent);
-        }
+        flag_if_inconsistent(&mut fit.quality, sigmas);
     }
     Outcome {
         feature,

@@ -78,15 +78,18 @@ pub const MAX_DISAGREEMENT_SIGMAS: f64 = 10.0;
 /// [`MAX_DISAGREEMENT_SIGMAS`].
 pub fn check_against_epipolar(stereo: &mut StereoPose, epipolar: &RelativePose) {
     let pnp = &mut stereo.pnp;
-    let Some(sigmas) =
-        epipolar_disagreement_sigmas(&pnp.pose, &pnp.quality, pnp.covariance.as_ref(), epipolar)
-    else {
-        return;
-    };
-    stereo.epipolar_disagreement_sigmas = Some(sigmas);
-    if sigmas > MAX_DISAGREEMENT_SIGMAS {
-        pnp.quality.flag(Reason::Inconsistent);
+    let sigmas =
+        epipolar_disagreement_sigmas(&pnp.pose, &pnp.quality, pnp.covariance.as_ref(), epipolar);
+    stereo.epipolar_disagreement_sigmas = flag_if_inconsistent(&mut pnp.quality, sigmas);
+}
+
+/// Flags `quality` [`Reason::Inconsistent`] when another estimate disagrees with it by
+/// `sigmas` beyond [`MAX_DISAGREEMENT_SIGMAS`]; returns `sigmas` (`None`: not compared).
+pub fn flag_if_inconsistent(quality: &mut Quality, sigmas: Option<f64>) -> Option<f64> {
+    if sigmas.is_some_and(|s| s > MAX_DISAGREEMENT_SIGMAS) {
+        quality.flag(Reason::Inconsistent);
     }
+    sigmas
 }
 
 /// How far a metric pose `pose` (`T_21`, with its `quality` and the 6x6 covariance of its left

@@ -11,6 +11,7 @@ use std::sync::Arc;
 
 use vofront_core::{Camera, Pinhole, UndistortMap};
 use vofront_image::{Image, Remap};
+use vofront_robust::median_in_place;
 
 use crate::error::DirectError;
 
@@ -131,6 +132,18 @@ impl RgbdFrame {
     /// Depth `Z` in metres along the optical axis, undistorted; `0` or NaN = unknown.
     pub fn depth(&self) -> &Image<f32> {
         &self.depth
+    }
+
+    /// Median of the known depths, metres (a frame always has one: [`RgbdFrame::new`]).
+    pub fn median_depth(&self) -> f64 {
+        let mut known: Vec<f64> = self
+            .depth
+            .data()
+            .iter()
+            .filter(|z| **z > 0.0 && z.is_finite())
+            .map(|&z| f64::from(z))
+            .collect();
+        median_in_place(&mut known).unwrap_or(f64::NAN)
     }
 
     /// Intrinsics of [`RgbdFrame::image`] and [`RgbdFrame::depth`].

@@ -127,8 +127,8 @@ fn calibration_sensitivity(
             // g^T (w - c) = a_x X' + a_y Y' = -a_z Z'; g_x = a_x Z' / f_x.
             let dr = [
                 a.dot(&(rot * focal_ray)) - a.z * pc.z,
-                a.dot(&(rot * Vector3::new(-p.z / fx, 0.0, 0.0))) + a.x * pc.z / fx,
-                a.dot(&(rot * Vector3::new(0.0, -p.z / fy, 0.0))) + a.y * pc.z / fy,
+                (a.x * pc.z - a.dot(&rot.column(0)) * p.z) / fx,
+                (a.y * pc.z - a.dot(&rot.column(1)) * p.z) / fy,
                 a.dot(&(rot * p)),
             ];
             bread.add(&j, 0.0, weight);
@@ -150,13 +150,13 @@ fn calibration_sensitivity(
             .map(chunk)
             .reduce(empty, merge)
     };
-    let mut b = bread.hessian();
-    for (i, &f) in fixed.iter().enumerate() {
-        if f {
-            b[(i, i)] = 1.0;
-        }
+    let mut bread = bread;
+    for (i, _) in fixed.iter().enumerate().filter(|(_, f)| **f) {
+        bread.fix(i);
     }
-    b.try_inverse()
+    bread
+        .hessian()
+        .try_inverse()
         .map(|inv| -(inv * cross))
         .filter(|v| v.iter().all(|x| x.is_finite()))
 }
