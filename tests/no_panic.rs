@@ -78,7 +78,7 @@ fn plane() -> impl Strategy<Value = Image<f32>> {
                 0 => ((i as f32 * 0.37 + seed as f32).sin() * 60.0 + 128.0).floor(),
                 1 => v,
                 _ => {
-                    if (i as u64 ^ seed) % 7 == 0 {
+                    if (i as u64 ^ seed).is_multiple_of(7) {
                         v
                     } else {
                         (i % 251) as f32
@@ -370,7 +370,7 @@ proptest! {
                 1 => Some(Image::filled(w, h, z)),
                 _ => Some(Image::filled(w / 2 + 1, h, 2.0)),
             };
-            let valid = timestamp.is_finite() && depth.as_ref().map_or(true, |d| d.size() == (w, h));
+            let valid = timestamp.is_finite() && depth.as_ref().is_none_or(|d| d.size() == (w, h));
             let frame = Frame::new(timestamp, image, depth);
             prop_assert_eq!(frame.is_ok(), valid, "{:?}", frame.as_ref().err());
             accepted.extend(frame.ok());

@@ -92,7 +92,7 @@ fn soak(soak: &Soak, tracker: &mut dyn Tracker) -> Outcome {
     let mut sample = |r: &FrameRecord| -> io::Result<()> {
         if r.index + 1 == n / 4 {
             rss_quarter_kb = memory_kb().map(|m| m.0);
-        } else if r.index + 1 > n / 4 && r.index % 25 == 0 {
+        } else if r.index + 1 > n / 4 && r.index.is_multiple_of(25) {
             if let Some((rss, _)) = memory_kb() {
                 rss_max_kb = Some(rss_max_kb.map_or(rss, |m| m.max(rss)));
             }

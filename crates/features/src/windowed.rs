@@ -159,8 +159,7 @@ pub fn match_windowed(
         grid.visit(px, py, radius, |t| {
             let ti = t as usize;
             let (dx, dy) = (train.xs()[ti] - px, train.ys()[ti] - py);
-            let level_ok =
-                level_tolerance.map_or(true, |k| train.levels()[ti].abs_diff(level) <= k);
+            let level_ok = level_tolerance.is_none_or(|k| train.levels()[ti].abs_diff(level) <= k);
             if dx * dx + dy * dy <= r2 && level_ok {
                 f(t, query.descriptors()[q].hamming(&train.descriptors()[ti]));
             }
@@ -193,7 +192,7 @@ pub fn match_windowed(
         .enumerate()
         .filter(|(_, k)| k.accepted(cfg))
         .filter(|(q, k)| {
-            reverse.as_ref().map_or(true, |r| {
+            reverse.as_ref().is_none_or(|r| {
                 r[k.best as usize].load(Ordering::Relaxed) & 0xffff_ffff == *q as u64
             })
         })

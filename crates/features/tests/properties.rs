@@ -128,7 +128,7 @@ proptest! {
         let in_window = |qi: usize, ti: usize| {
             let (dx, dy) = (tf.xs()[ti] - predicted[qi].0, tf.ys()[ti] - predicted[qi].1);
             dx * dx + dy * dy <= radius * radius
-                && tol.map_or(true, |k| tf.levels()[ti].abs_diff(qf.levels()[qi]) <= k)
+                && tol.is_none_or(|k| tf.levels()[ti].abs_diff(qf.levels()[qi]) <= k)
         };
         let mut want = Vec::new();
         for qi in 0..q.len() {

@@ -507,4 +507,31 @@ mod tests {
         let d = Line(vec![(0.0, 0.0)]);
         assert!(ransac(&d, &RansacConfig::default()).is_none());
     }
+
+    #[test]
+    fn a_run_capped_at_its_least_budget_is_the_start_of_a_longer_one() {
+        // The two-view selection relies on this: the homography's least budget runs first,
+        // and a larger budget re-runs it from the same seed.
+        let est = data();
+        let at = |max_iterations| {
+            ransac(
+                &est,
+                &RansacConfig {
+                    threshold: 0.2,
+                    min_iterations: 30,
+                    max_iterations,
+                    ..Default::default()
+                },
+            )
+            .expect("a model")
+        };
+        let (capped, longer) = (at(30), at(10_000));
+        assert_eq!(capped.iterations, 30);
+        assert_eq!(
+            longer.iterations, 30,
+            "the inlier ratio asks for fewer than 30"
+        );
+        assert_eq!((capped.model, capped.score), (longer.model, longer.score));
+        assert_eq!(capped.inliers, longer.inliers);
+    }
 }

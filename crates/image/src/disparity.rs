@@ -145,7 +145,7 @@ pub fn select_pixels(left: &Image<f32>, cfg: &DisparityConfig) -> Vec<(u32, u32)
                 for (x, (r, l)) in row[m + 1..w - m + 1].iter().zip(&row[m - 1..]).enumerate() {
                     let g = 0.5 * (r - l).abs();
                     let slot = &mut best[x / cell];
-                    if g >= cfg.min_gradient && slot.map_or(true, |b| g > b.0) {
+                    if g >= cfg.min_gradient && slot.is_none_or(|b| g > b.0) {
                         *slot = Some((g, (x + m) as u32, y as u32));
                     }
                 }

@@ -49,7 +49,11 @@ impl KltConfig {
     /// [`ImageError::InvalidConfig`] unless `window` is odd and at least 3 and `levels` and
     /// `max_iterations` are positive.
     pub fn validate(&self) -> Result<(), ImageError> {
-        if self.window < 3 || self.window % 2 == 0 || self.levels == 0 || self.max_iterations == 0 {
+        if self.window < 3
+            || self.window.is_multiple_of(2)
+            || self.levels == 0
+            || self.max_iterations == 0
+        {
             return Err(ImageError::InvalidConfig(
                 "window must be odd and >= 3, levels and max_iterations positive",
             ));
@@ -197,9 +201,9 @@ fn padded(img: &Image<f32>, pad: usize) -> Image<f32> {
     let mut data = Vec::with_capacity(pw * (h + 2 * pad));
     for y in 0..h + 2 * pad {
         let row = img.row(y.saturating_sub(pad).min(h - 1));
-        data.extend(std::iter::repeat(row[0]).take(pad));
+        data.extend(std::iter::repeat_n(row[0], pad));
         data.extend_from_slice(row);
-        data.extend(std::iter::repeat(row[w - 1]).take(pad));
+        data.extend(std::iter::repeat_n(row[w - 1], pad));
     }
     Image::new(pw, h + 2 * pad, data).expect("one padded row of pw values per padded row")
 }
@@ -491,7 +495,7 @@ pub fn track_klt_pyramids(
             |s, (i, &p)| {
                 let g = guess(i);
                 let finite = |v: Vector2<f32>| v.x.is_finite() && v.y.is_finite();
-                if !finite(p) || !g.map_or(true, finite) {
+                if !finite(p) || !g.is_none_or(finite) {
                     return KltTrack {
                         position: p,
                         status: KltStatus::OutOfBounds,

@@ -55,7 +55,7 @@ impl Remap {
         }
         if source_width
             .checked_mul(source_height)
-            .map_or(true, |n| n >= OUTSIDE as usize)
+            .is_none_or(|n| n >= OUTSIDE as usize)
         {
             return Err(ImageError::InvalidConfig(
                 "remap source must have fewer than u32::MAX pixels",

@@ -196,7 +196,7 @@ impl CdrWriter {
     }
 
     fn align(&mut self, n: usize) {
-        while (self.bytes.len() - HEADER) % n != 0 {
+        while !(self.bytes.len() - HEADER).is_multiple_of(n) {
             self.bytes.push(0);
         }
     }

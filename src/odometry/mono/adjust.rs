@@ -166,8 +166,12 @@ mod tests {
     fn whole_pixel_steps_are_kept_and_the_outlier_unlinked() {
         let stepped = |k: usize, j: usize| {
             let fine = 0.05 * smooth_noise(k, j) / 0.3;
-            let sign = if j % 2 == 0 { 1.0 } else { -1.0 };
-            let step = if (j + k) % 4 == 0 { 0.6 * sign } else { 0.0 };
+            let sign = if j.is_multiple_of(2) { 1.0 } else { -1.0 };
+            let step = if (j + k).is_multiple_of(4) {
+                0.6 * sign
+            } else {
+                0.0
+            };
             fine + Vector2::new(step, 0.0)
         };
         let tracker = tracker_adjustment();

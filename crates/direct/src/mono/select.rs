@@ -68,7 +68,7 @@ fn best_in_block(
             let gx = 0.5 * (img.at(x + 1, y) - img.at(x - 1, y));
             let gy = 0.5 * (img.at(x, y + 1) - img.at(x, y - 1));
             let g2 = gx * gx + gy * gy;
-            if g2 >= t2 && best.map_or(true, |b| g2 > b.0) {
+            if g2 >= t2 && best.is_none_or(|b| g2 > b.0) {
                 let pixel = Vector2::new((x * s) as f32, (y * s) as f32);
                 let gradient = Vector2::new(gx, gy);
                 best = Some((

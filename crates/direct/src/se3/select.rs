@@ -99,7 +99,7 @@ pub(super) fn select_level(
                 for (ci, b) in best.iter_mut().enumerate() {
                     let x0 = 1 + ci * cell;
                     for (x, &g) in g2.iter().enumerate().take((x0 + cell).min(w - 1)).skip(x0) {
-                        if g >= t2 && b.map_or(true, |b| g > b.0) {
+                        if g >= t2 && b.is_none_or(|b| g > b.0) {
                             if let Some(z) = depth_at(x, y) {
                                 *b = Some((g, x, y, z));
                             }

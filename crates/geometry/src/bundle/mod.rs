@@ -259,7 +259,7 @@ fn validate(problem: &BundleProblem, cfg: &BundleConfig) -> Result<(), GeometryE
     let finite_pixels = problem.observations.iter().all(|o| {
         o.pixel.iter().all(|v| v.is_finite())
             && o.sigma.is_finite()
-            && o.right.map_or(true, f64::is_finite)
+            && o.right.is_none_or(f64::is_finite)
     });
     if finite_poses && finite_points && finite_pixels {
         Ok(())

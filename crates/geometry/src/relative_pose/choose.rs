@@ -52,12 +52,7 @@ pub(super) fn refine_and_choose(
 ) -> Result<Chosen, GeometryError> {
     let (data, cfg) = (&tv.data, tv.cfg);
     let est = EssentialEstimator(data, 0.5 * tv.threshold);
-    let mut refined: Vec<Candidate> = Vec::with_capacity(2);
-    for (candidate, model) in [
-        (rec.selected(), rec.model),
-        (rec.competing(), Model::Essential),
-    ] {
-        let Some(candidate) = candidate else { continue };
+    let refine = |candidate: &'_ PoseRecovery| {
         let mut state = (
             candidate.pose.rotation.to_rotation_matrix(),
             candidate.pose.translation.vector,
@@ -71,8 +66,18 @@ pub(super) fn refine_and_choose(
         }
         let e = hat(&state.1) * state.0.matrix();
         let (cost, _) = est.score(&e, tv.threshold * tv.threshold, f64::INFINITY);
-        refined.push((state, cost, model, candidate));
-    }
+        (state, cost)
+    };
+    // The two candidates are refined at once.
+    let (selected, competing) = rayon::join(
+        || rec.selected().map(|c| (refine(c), rec.model, c)),
+        || rec.competing().map(|c| (refine(c), Model::Essential, c)),
+    );
+    let mut refined: Vec<Candidate> = [selected, competing]
+        .into_iter()
+        .flatten()
+        .map(|((state, cost), model, candidate)| (state, cost, model, candidate))
+        .collect();
     refined.sort_by(|a, b| a.1.total_cmp(&b.1));
     if refined.len() == 2 && refined[1].1 * AMBIGUITY_MARGIN <= refined[0].1 {
         prefer_rotation_prior(tv, sel, &mut refined);

@@ -65,7 +65,20 @@ impl Selection {
 pub(super) fn select_model(tv: &TwoView) -> Selection {
     let (data, cfg) = (&tv.data, tv.cfg);
     let rcfg = cfg.ransac.in_normalized_units(tv.focal);
-    let essential = ransac(&EssentialEstimator(data, 0.5 * tv.threshold), &rcfg);
+    let hcfg = |max_iterations: usize| RansacConfig {
+        threshold: tv.transfer_threshold(),
+        max_iterations: max_iterations
+            .max(H_MIN_ITERATIONS)
+            .min(cfg.ransac.max_iterations),
+        ..rcfg
+    };
+    // The homography's least budget runs beside the essential matrix's search (the seeded
+    // sampler makes it the start of any longer run, so running it again with more iterations
+    // gives what one longer run would).
+    let (essential, speculative) = rayon::join(
+        || ransac(&EssentialEstimator(data, 0.5 * tv.threshold), &rcfg),
+        || ransac(&HomographyEstimator(data), &hcfg(H_MIN_ITERATIONS)),
+    );
     // The homography only matters if it can compete with the essential matrix: it gets the
     // iterations that find an all-inlier 4-sample when its inlier ratio equals the essential's.
     let h_iterations = essential.as_ref().map_or(cfg.ransac.max_iterations, |e| {
@@ -75,14 +88,11 @@ pub(super) fn select_model(tv: &TwoView) -> Selection {
             4,
         )
     });
-    let hcfg = RansacConfig {
-        threshold: tv.transfer_threshold(),
-        max_iterations: h_iterations
-            .max(H_MIN_ITERATIONS)
-            .min(cfg.ransac.max_iterations),
-        ..rcfg
+    let homography = if hcfg(h_iterations) == hcfg(H_MIN_ITERATIONS) {
+        speculative
+    } else {
+        ransac(&HomographyEstimator(data), &hcfg(h_iterations))
     };
-    let homography = ransac(&HomographyEstimator(data), &hcfg);
     let (s_h, s_e) = model_scores(
         data,
         essential.as_ref().map(|r| &r.model),
