@@ -111,6 +111,11 @@ impl TrainWords {
     fn len(&self) -> usize {
         self.words[0].len()
     }
+
+    /// Descriptor `t`, gathered from its words.
+    fn descriptor(&self, t: usize) -> Descriptor {
+        Descriptor(self.words.each_ref().map(|w| w[t]))
+    }
 }
 
 /// Nearest two train descriptors of every query (ties keep the smaller train index).
@@ -200,7 +205,6 @@ fn knn2_block_generic(query: &[Descriptor], train: &TrainWords, out: &mut [Knn2]
     let [w0, w1, w2, w3] = &train.words;
     let full = train.len() / LANES * LANES;
     for (q, o) in query.iter().zip(out.iter_mut()) {
-        let [q0, q1, q2, q3] = q.0;
         let mut best = [u32::MAX; LANES];
         let mut second = [u32::MAX; LANES];
         let mut index = [u32::MAX; LANES];
@@ -208,10 +212,7 @@ fn knn2_block_generic(query: &[Descriptor], train: &TrainWords, out: &mut [Knn2]
             let (c0, c1) = (&w0[base..base + LANES], &w1[base..base + LANES]);
             let (c2, c3) = (&w2[base..base + LANES], &w3[base..base + LANES]);
             for l in 0..LANES {
-                let d = (q0 ^ c0[l]).count_ones()
-                    + (q1 ^ c1[l]).count_ones()
-                    + (q2 ^ c2[l]).count_ones()
-                    + (q3 ^ c3[l]).count_ones();
+                let d = q.hamming(&Descriptor([c0[l], c1[l], c2[l], c3[l]]));
                 let nearer = d < best[l];
                 second[l] = if nearer { best[l] } else { second[l].min(d) };
                 index[l] = if nearer { (base + l) as u32 } else { index[l] };
@@ -220,11 +221,7 @@ fn knn2_block_generic(query: &[Descriptor], train: &TrainWords, out: &mut [Knn2]
         }
         let mut k = merge_lanes(&best, &second, &index);
         for t in full..train.len() {
-            let d = (q0 ^ w0[t]).count_ones()
-                + (q1 ^ w1[t]).count_ones()
-                + (q2 ^ w2[t]).count_ones()
-                + (q3 ^ w3[t]).count_ones();
-            k.offer(t as u32, d);
+            k.offer(t as u32, q.hamming(&train.descriptor(t)));
         }
         *o = k;
     }

@@ -142,7 +142,7 @@ fn calibration_sensitivity(
         |(b1, c1): (NormalEquations<8>, SMatrix<f64, 8, 4>),
          (b2, c2): (NormalEquations<8>, SMatrix<f64, 8, 4>)| { (b1.merge(&b2), c1 + c2) };
     let empty = || (NormalEquations::<8>::new(), SMatrix::<f64, 8, 4>::zeros());
-    let (bread, cross) = if n <= SERIAL_MAX {
+    let (mut bread, cross) = if n <= SERIAL_MAX {
         (0..n.div_ceil(CHUNK)).map(chunk).fold(empty(), merge)
     } else {
         (0..n.div_ceil(CHUNK))
@@ -150,7 +150,6 @@ fn calibration_sensitivity(
             .map(chunk)
             .reduce(empty, merge)
     };
-    let mut bread = bread;
     for (i, _) in fixed.iter().enumerate().filter(|(_, f)| **f) {
         bread.fix(i);
     }

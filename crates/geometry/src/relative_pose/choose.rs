@@ -45,14 +45,14 @@ type Candidate<'a> = (RelState, f64, Model, &'a PoseRecovery);
 
 /// Refines the recovered motions and chooses one; [`GeometryError::Degenerate`] when there is
 /// none to refine.
-pub(super) fn refine_and_choose(
+pub(super) fn refine_and_choose<'a>(
     tv: &TwoView,
     sel: &Selection,
-    rec: &Recovery,
+    rec: &'a Recovery,
 ) -> Result<Chosen, GeometryError> {
     let (data, cfg) = (&tv.data, tv.cfg);
     let est = EssentialEstimator(data, 0.5 * tv.threshold);
-    let refine = |candidate: &'_ PoseRecovery| {
+    let refine = |candidate: &'a PoseRecovery, model: Model| -> Candidate<'a> {
         let mut state = (
             candidate.pose.rotation.to_rotation_matrix(),
             candidate.pose.translation.vector,
@@ -66,18 +66,14 @@ pub(super) fn refine_and_choose(
         }
         let e = hat(&state.1) * state.0.matrix();
         let (cost, _) = est.score(&e, tv.threshold * tv.threshold, f64::INFINITY);
-        (state, cost)
+        (state, cost, model, candidate)
     };
     // The two candidates are refined at once.
     let (selected, competing) = rayon::join(
-        || rec.selected().map(|c| (refine(c), rec.model, c)),
-        || rec.competing().map(|c| (refine(c), Model::Essential, c)),
+        || rec.selected().map(|c| refine(c, rec.model)),
+        || rec.competing().map(|c| refine(c, Model::Essential)),
     );
-    let mut refined: Vec<Candidate> = [selected, competing]
-        .into_iter()
-        .flatten()
-        .map(|((state, cost), model, candidate)| (state, cost, model, candidate))
-        .collect();
+    let mut refined: Vec<Candidate> = [selected, competing].into_iter().flatten().collect();
     refined.sort_by(|a, b| a.1.total_cmp(&b.1));
     if refined.len() == 2 && refined[1].1 * AMBIGUITY_MARGIN <= refined[0].1 {
         prefer_rotation_prior(tv, sel, &mut refined);

@@ -75,9 +75,10 @@ pub(super) fn select_model(tv: &TwoView) -> Selection {
     // The homography's least budget runs beside the essential matrix's search (the seeded
     // sampler makes it the start of any longer run, so running it again with more iterations
     // gives what one longer run would).
+    let least = hcfg(H_MIN_ITERATIONS);
     let (essential, speculative) = rayon::join(
         || ransac(&EssentialEstimator(data, 0.5 * tv.threshold), &rcfg),
-        || ransac(&HomographyEstimator(data), &hcfg(H_MIN_ITERATIONS)),
+        || ransac(&HomographyEstimator(data), &least),
     );
     // The homography only matters if it can compete with the essential matrix: it gets the
     // iterations that find an all-inlier 4-sample when its inlier ratio equals the essential's.
@@ -88,10 +89,11 @@ pub(super) fn select_model(tv: &TwoView) -> Selection {
             4,
         )
     });
-    let homography = if hcfg(h_iterations) == hcfg(H_MIN_ITERATIONS) {
+    let budget = hcfg(h_iterations);
+    let homography = if budget == least {
         speculative
     } else {
-        ransac(&HomographyEstimator(data), &hcfg(h_iterations))
+        ransac(&HomographyEstimator(data), &budget)
     };
     let (s_h, s_e) = model_scores(
         data,
