@@ -228,10 +228,10 @@ impl FeatureRgbdTracker {
             pnp: &self.cfg.pnp,
             min_inliers: self.cfg.min_inliers,
         };
-        let first = locator.locate(&kf.features, &kf.points, &features, prior);
+        let first = locator.locate(&kf.features, &kf.points, None, &features, prior);
         // Second pass around the first estimate (see the module documentation).
         let Located { matches, fit, .. } = match &first.fit {
-            Ok(f) => locator.locate(&kf.features, &kf.points, &features, f.pose),
+            Ok(f) => locator.locate(&kf.features, &kf.points, None, &features, f.pose),
             Err(_) => first,
         };
         let fit = match fit {

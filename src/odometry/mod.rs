@@ -52,10 +52,12 @@ pub mod stereo;
 use std::collections::HashMap;
 use std::time::Instant;
 
-use nalgebra::{Isometry3, Point3, Vector2};
+use nalgebra::{Isometry3, Matrix3, Point3, Vector2};
 use vofront_core::Camera;
 use vofront_features::{match_descriptors, match_windowed, Features, Match, MatchConfig};
-use vofront_geometry::pnp::{solve_pnp_ransac_with_sigmas, PnpConfig, PnpResult};
+use vofront_geometry::pnp::{
+    solve_pnp_ransac_with_point_covariances, solve_pnp_ransac_with_sigmas, PnpConfig, PnpResult,
+};
 use vofront_robust::{Quality, Verdict};
 
 use crate::dataset::Frame;
@@ -393,11 +395,13 @@ impl PointLocator<'_> {
     /// Matches keyframe features carrying a point `P` to `current` within `window_px` of
     /// `pi(K prior P)` (by brute force when that finds fewer than `2 min_inliers`), then
     /// estimates `T_cur_from` by PnP from the guess `prior`; a PnP pose whose verdict is
-    /// `failed` is no location.
+    /// `failed` is no location. With `covariances` (index-aligned with `points`), the points'
+    /// own noise weighs their residuals ([`solve_pnp_ransac_with_point_covariances`]).
     pub fn locate(
         &self,
         kf: &Features,
         points: &[Option<Point3<f64>>],
+        covariances: Option<&[Option<Matrix3<f64>>]>,
         current: &Features,
         prior: Isometry3<f64>,
     ) -> Located {
@@ -435,14 +439,31 @@ impl PointLocator<'_> {
             .iter()
             .map(|m| f64::from(current.scales()[m.train as usize]))
             .collect();
-        let fit = solve_pnp_ransac_with_sigmas(
-            &world,
-            &pixels,
-            &sigmas,
-            self.camera,
-            Some(prior),
-            self.pnp,
-        )
+        let fit = match covariances {
+            None => solve_pnp_ransac_with_sigmas(
+                &world,
+                &pixels,
+                &sigmas,
+                self.camera,
+                Some(prior),
+                self.pnp,
+            ),
+            Some(covariances) => {
+                let matched: Vec<Option<Matrix3<f64>>> = matches
+                    .iter()
+                    .map(|m| covariances.get(m.query as usize).copied().flatten())
+                    .collect();
+                solve_pnp_ransac_with_point_covariances(
+                    &world,
+                    &pixels,
+                    &sigmas,
+                    &matched,
+                    self.camera,
+                    Some(prior),
+                    self.pnp,
+                )
+            }
+        }
         .map_err(VoError::from)
         .and_then(|fit| {
             if fit.quality.verdict == Verdict::Failed {

@@ -27,7 +27,7 @@ use nalgebra::{Isometry3, Matrix3, Matrix6, Translation3, Vector3};
 use vofront_core::rig::Rig;
 use vofront_core::Camera;
 use vofront_features::{match_descriptors, Orb};
-use vofront_geometry::{solve_pnp_ransac_with_sigmas, PnpResult, RelativePose};
+use vofront_geometry::{solve_pnp_ransac_with_point_covariances, PnpResult, RelativePose};
 use vofront_image::disparity::{match_pixels, select_pixels, DisparityConfig};
 use vofront_image::Image;
 use vofront_robust::{Quality, Reason};
@@ -208,14 +208,23 @@ pub fn stereo_pose(
     let mut points = Vec::with_capacity(matches.len());
     let mut pixels = Vec::with_capacity(matches.len());
     let mut sigmas = Vec::with_capacity(matches.len());
+    let mut covariances = Vec::with_capacity(matches.len());
     for m in &matches {
         let i = with_point[m.query as usize] as usize;
         points.extend(view.points[i]);
         pixels.push(feature_pixel(&f2, m.train));
         sigmas.push(f64::from(f2.scales()[m.train as usize]));
+        covariances.push(view.covariances[i]);
     }
-    let pnp =
-        solve_pnp_ransac_with_sigmas(&points, &pixels, &sigmas, &rect.camera, None, &cfg.pnp)?;
+    let pnp = solve_pnp_ransac_with_point_covariances(
+        &points,
+        &pixels,
+        &sigmas,
+        &covariances,
+        &rect.camera,
+        None,
+        &cfg.pnp,
+    )?;
     Ok(StereoPose {
         pnp,
         keypoints: [view.features.len(), f2.len()],

@@ -69,8 +69,8 @@ pub use vofront_core::{
 pub use bundle::{bundle_adjust, BundleConfig, BundleProblem, BundleReport, Observation};
 pub use error::GeometryError;
 pub use pnp::{
-    add_point_covariances, pnp_quality, solve_pnp_ransac, solve_pnp_ransac_with_sigmas, PnpConfig,
-    PnpEvidence, PnpResult,
+    add_point_covariances, pnp_quality, solve_pnp_ransac, solve_pnp_ransac_with_point_covariances,
+    solve_pnp_ransac_with_sigmas, PnpConfig, PnpEvidence, PnpResult,
 };
 pub use ransac::RansacConfig;
 pub use relative_pose::{estimate_relative_pose, Model, RelativePose, RelativePoseConfig};

@@ -1,7 +1,7 @@
 //! Locating a frame in the local map: the matching passes of tracking, shared by the feature
 //! trackers.
 
-use nalgebra::{Isometry3, Point3};
+use nalgebra::{Isometry3, Matrix3, Point3};
 use vofront_core::Camera;
 use vofront_features::{Features, MatchConfig};
 use vofront_geometry::pnp::{PnpConfig, PnpResult};
@@ -69,11 +69,13 @@ impl MapSearch<'_> {
     /// (the first matches were those the window let through, part of the right ones); then the
     /// points are matched again within `relocate_window_px` of the located pose, which takes
     /// fewer wrong candidates and loses fewer right ones to the ratio test. Each later location
-    /// replaces the one before when it has more inliers.
+    /// replaces the one before when it has more inliers. `covariances`, index-aligned with
+    /// `positions`, are the points' own noise ([`PointLocator::locate`]).
     pub fn locate(
         &self,
         query: &Features,
         positions: &[Option<Point3<f64>>],
+        covariances: Option<&[Option<Matrix3<f64>>]>,
         current: &Features,
         predicted: Isometry3<f64>,
     ) -> Located {
@@ -85,7 +87,7 @@ impl MapSearch<'_> {
                 pnp: self.pnp,
                 min_inliers: self.min_inliers,
             };
-            locator.locate(query, positions, current, prior)
+            locator.locate(query, positions, covariances, current, prior)
         };
         let mut located = locate(self.window_px, predicted.inverse());
         if located.fit.is_err() {

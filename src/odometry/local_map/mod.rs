@@ -244,6 +244,14 @@ impl LocalMap {
         (query, positions, ids)
     }
 
+    /// The covariance of each point of `ids` ([`MapPoint::covariance`]; `None` for a point
+    /// without one or no longer in the map), index-aligned with `ids`.
+    pub fn covariances(&self, ids: &[PointId]) -> Vec<Option<Matrix3<f64>>> {
+        ids.iter()
+            .map(|id| self.points.get(id).and_then(|p| p.covariance))
+            .collect()
+    }
+
     /// [`Self::local_points`] without counting the points as visible (a trial location).
     pub fn project_points(
         &self,

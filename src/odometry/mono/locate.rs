@@ -30,7 +30,7 @@ impl MonoTracker {
             relocate_window_px: self.cfg.relocate_window_px,
             min_inliers: self.cfg.min_inliers,
         };
-        search.locate(query, positions, current, predicted)
+        search.locate(query, positions, None, current, predicted)
     }
 
     /// The frames an initialisation waited through (`waiting`: their features, the reference

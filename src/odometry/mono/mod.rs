@@ -388,7 +388,7 @@ impl MonoTracker {
         self.lost.relocate(|map| {
             let (query, positions, _) =
                 map.project_points(locator.camera, &predicted.inverse(), size, scale_factor);
-            let located = locator.locate(&query, &positions, current, predicted.inverse());
+            let located = locator.locate(&query, &positions, None, current, predicted.inverse());
             located.fit.is_ok()
         })
     }

@@ -299,7 +299,13 @@ impl StereoTracker {
             points: world,
             sigmas,
             fit,
-        } = search.locate(&query, &positions, &view.features, predicted);
+        } = search.locate(
+            &query,
+            &positions,
+            Some(&map.covariances(&ids)),
+            &view.features,
+            predicted,
+        );
         let mut fit = match fit {
             Ok(fit) => fit,
             Err(why) => {
@@ -405,9 +411,16 @@ impl StereoTracker {
         let current: &Features = &view.features;
         self.lost.relocate(|map| {
             let t_cw = predicted.inverse();
-            let (query, positions, _) = map.project_points(camera, &t_cw, view.size, scale_factor);
+            let (query, positions, ids) =
+                map.project_points(camera, &t_cw, view.size, scale_factor);
             locator
-                .locate(&query, &positions, current, t_cw)
+                .locate(
+                    &query,
+                    &positions,
+                    Some(&map.covariances(&ids)),
+                    current,
+                    t_cw,
+                )
                 .fit
                 .is_ok()
         })

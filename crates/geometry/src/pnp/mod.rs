@@ -13,12 +13,24 @@
 //! located to about `1.2^k` pixels, so its residual is divided by that before the loss, the
 //! inlier threshold and the chance test apply. The covariance is then of the whitened
 //! residuals, in units where `s_i = 1` has the noise `sigma_px`.
+//!
+//! Points with a covariance of their own (a stereo point's depth noise along its ray,
+//! [`solve_pnp_ransac_with_point_covariances`]) widen their residual's noise to the 2x2
+//! `s_i^2 I + G_i C_i G_i^T / sigma_px^2` ([`point_noise`]): a far point then constrains the
+//! pose across the direction its depth error moves its image, and hardly along it.
 
-use nalgebra::{Isometry3, Matrix2x3, Matrix3, Matrix6, Point3, SVector, Vector2, Vector3};
+mod point_noise;
+
+pub use point_noise::add_point_covariances;
+use point_noise::{point_whitening, whitened_error};
+
+use nalgebra::{
+    Isometry3, Matrix2, Matrix2x3, Matrix3, Matrix6, Point3, SVector, Vector2, Vector3,
+};
 use vofront_robust::quality::{block_rows, log10_nfa, repaired_chance_rate, rms_of};
 use vofront_robust::{
-    at_least, irls, Convergence, IrlsConfig, LmConfig, Loss, Problem, Quality, QualityConfig,
-    Reason, Rows, ScaleMode, Support, Uncertainty,
+    irls, Convergence, IrlsConfig, LmConfig, Loss, Problem, Quality, QualityConfig, Reason, Rows,
+    ScaleMode, Support, Uncertainty,
 };
 
 use crate::camera::Camera;
@@ -97,6 +109,8 @@ struct PnpEstimator<'a> {
     pixels: &'a [Vector2<f64>],
     /// Relative noise scale of each pixel, index-aligned with `world`.
     sigmas: &'a [f64],
+    /// `I / sigmas[i]`, the refinement's whitening of each residual.
+    whitening: &'a [Matrix2<f64>],
     camera: &'a Camera,
     /// Residual scale of the Huber loss, pixels.
     sigma_px: f64,
@@ -149,7 +163,7 @@ impl Estimator for PnpEstimator<'_> {
             camera: self.camera,
             world: self.world,
             pixels: self.pixels,
-            sigmas: self.sigmas,
+            whitening: self.whitening,
             indices,
         };
         let cfg = huber_irls(self.sigma_px, LO_IRLS_ITERATIONS);
@@ -164,12 +178,14 @@ impl Estimator for PnpEstimator<'_> {
     }
 }
 
-/// Reprojection problem over the inliers, each residual divided by its noise scale.
+/// Reprojection problem over the inliers, each residual whitened: `W_i (pi(T P_i) - u_i)` with
+/// `W_i^T W_i` the inverse of its noise covariance in units of `sigma_px^2` (`I / s_i` for a
+/// pixel noise alone).
 struct Reprojection<'a> {
     camera: &'a Camera,
     world: &'a [Point3<f64>],
     pixels: &'a [Vector2<f64>],
-    sigmas: &'a [f64],
+    whitening: &'a [Matrix2<f64>],
     indices: &'a [usize],
 }
 
@@ -182,9 +198,9 @@ impl Problem<6> for Reprojection<'_> {
             let Some((pixel, jpix)) = project_in_front(self.camera, &x) else {
                 continue;
             };
-            let w = 1.0 / self.sigmas[i];
-            let j = jpix * point_jacobian(&x) * w;
-            let r = (pixel - self.pixels[i]) * w;
+            let w = &self.whitening[i];
+            let j = w * (jpix * point_jacobian(&x));
+            let r = w * (pixel - self.pixels[i]);
             rows.push(j.row(0).transpose(), r.x);
             rows.push(j.row(1).transpose(), r.y);
         }
@@ -208,7 +224,8 @@ pub(crate) fn project_in_front(
     camera.project_with_jacobian(x)
 }
 
-/// Pixel reprojection error of correspondence `i` under `T_cw`, infinite behind the camera.
+/// Pixel reprojection error of the world point `p` observed at `u` under `T_cw`, infinite
+/// behind the camera.
 fn reprojection_px(camera: &Camera, t: &Isometry3<f64>, p: &Point3<f64>, u: &Vector2<f64>) -> f64 {
     camera
         .project(&(t * p).coords)
@@ -252,6 +269,68 @@ pub fn solve_pnp_ransac_with_sigmas(
     points_world: &[Point3<f64>],
     pixels: &[Vector2<f64>],
     sigmas: &[f64],
+    camera: &Camera,
+    prior: Option<Isometry3<f64>>,
+    cfg: &PnpConfig,
+) -> Result<PnpResult, GeometryError> {
+    solve(points_world, pixels, sigmas, None, camera, prior, cfg)
+}
+
+/// [`solve_pnp_ransac_with_sigmas`] for world points that carry a covariance `C_i` (world
+/// frame, metres^2; `None` for an exact point), such as stereo points with their depth noise.
+/// RANSAC is as without; then the inliers are selected and refined under each residual's
+/// noise `sigma_px^2 (s_i^2 I + G_i C_i G_i^T / sigma_px^2)`, `G_i = jpix R_cw` the pixel's
+/// Jacobian in the point, evaluated at the current pose and re-evaluated after each of
+/// [`POINT_NOISE_ROUNDS`] refinements. A point is an inlier when its whitened error
+/// `|W_i (pi(T P_i) - u_i)|` is under `ransac.threshold`; the chance test keeps the pixel
+/// noise alone. Errors: as [`solve_pnp_ransac_with_sigmas`], and
+/// [`GeometryError::LengthMismatch`] when `covariances` is not index-aligned with `pixels`,
+/// [`GeometryError::NonFinite`] for a covariance that is not finite.
+pub fn solve_pnp_ransac_with_point_covariances(
+    points_world: &[Point3<f64>],
+    pixels: &[Vector2<f64>],
+    sigmas: &[f64],
+    covariances: &[Option<Matrix3<f64>>],
+    camera: &Camera,
+    prior: Option<Isometry3<f64>>,
+    cfg: &PnpConfig,
+) -> Result<PnpResult, GeometryError> {
+    if covariances.len() != pixels.len() {
+        return Err(GeometryError::LengthMismatch(
+            covariances.len(),
+            pixels.len(),
+        ));
+    }
+    if covariances
+        .iter()
+        .flatten()
+        .any(|c| !c.iter().all(|v| v.is_finite()))
+    {
+        return Err(GeometryError::NonFinite);
+    }
+    solve(
+        points_world,
+        pixels,
+        sigmas,
+        Some(covariances),
+        camera,
+        prior,
+        cfg,
+    )
+}
+
+/// Refinements of [`solve_pnp_ransac_with_point_covariances`], each from the whitening at the
+/// pose the previous one reached.
+pub const POINT_NOISE_ROUNDS: usize = 2;
+
+/// The body of [`solve_pnp_ransac_with_sigmas`] and
+/// [`solve_pnp_ransac_with_point_covariances`] (`covariances` validated, index-aligned with
+/// `pixels`).
+fn solve(
+    points_world: &[Point3<f64>],
+    pixels: &[Vector2<f64>],
+    sigmas: &[f64],
+    covariances: Option<&[Option<Matrix3<f64>>]>,
     camera: &Camera,
     prior: Option<Isometry3<f64>>,
     cfg: &PnpConfig,
@@ -318,12 +397,14 @@ pub fn solve_pnp_ransac_with_sigmas(
     let focal = 0.5 * (camera.pinhole.fx + camera.pinhole.fy);
     let px: Vec<Vector2<f64>> = index.iter().map(|&i| pixels[i]).collect();
     let sg: Vec<f64> = index.iter().map(|&i| sigmas[i]).collect();
+    let isotropic: Vec<Matrix2<f64>> = sg.iter().map(|s| Matrix2::identity() / *s).collect();
     let est = PnpEstimator {
         world: &world,
         bearings: &bearings,
         normalized: &normalized,
         pixels: &px,
         sigmas: &sg,
+        whitening: &isotropic,
         camera,
         sigma_px: cfg.sigma_px,
     };
@@ -337,14 +418,29 @@ pub fn solve_pnp_ransac_with_sigmas(
     })?;
     let mut covariance = None;
     let (mut converged, mut refine_iterations) = (true, 0);
-    let inliers_of = |t: &Isometry3<f64>| -> Vec<usize> {
+    // The whitening at `t`: the pixel noise alone, or with each point's own noise (and then
+    // re-evaluated after each refinement).
+    let covariances = covariances.filter(|c| c.iter().any(Option::is_some));
+    let whiten = |t: &Isometry3<f64>| -> Vec<Matrix2<f64>> {
+        let Some(covariances) = covariances else {
+            return isotropic.clone();
+        };
         (0..world.len())
-            .filter(|&k| {
-                reprojection_px(camera, t, &world[k], &px[k]) < cfg.ransac.threshold * sg[k]
+            .map(|k| {
+                let c = covariances[index[k]].as_ref();
+                point_whitening(camera, t, &world[k], sg[k], c, cfg.sigma_px)
             })
             .collect()
     };
-    let mut used = inliers_of(&pose);
+    let inliers_of = |t: &Isometry3<f64>, whitening: &[Matrix2<f64>]| -> Vec<usize> {
+        (0..world.len())
+            .filter(|&k| {
+                whitened_error(camera, t, &world[k], &px[k], &whitening[k]) < cfg.ransac.threshold
+            })
+            .collect()
+    };
+    let mut whitening = whiten(&pose);
+    let mut used = inliers_of(&pose, &whitening);
     if used.len() < cfg.min_inliers.max(MIN_POINTS) {
         return Err(GeometryError::NoModel {
             best: used.len(),
@@ -352,12 +448,17 @@ pub fn solve_pnp_ransac_with_sigmas(
         });
     }
     let mut refined = !cfg.refine;
-    if cfg.refine {
+    let rounds = match (cfg.refine, covariances) {
+        (false, _) => 0,
+        (true, Some(_)) => POINT_NOISE_ROUNDS,
+        (true, None) => 1,
+    };
+    for _ in 0..rounds {
         let mut problem = Reprojection {
             camera,
             world: &world,
             pixels: &px,
-            sigmas: &sg,
+            whitening: &whitening,
             indices: &used,
         };
         if let Ok(res) = irls(&mut problem, pose, &huber_irls(cfg.sigma_px, 20)) {
@@ -367,16 +468,18 @@ pub fn solve_pnp_ransac_with_sigmas(
             refine_iterations = res.iterations;
             refined = true;
         }
-        used = inliers_of(&pose);
+        if covariances.is_some() {
+            whitening = whiten(&pose);
+        }
+        used = inliers_of(&pose, &whitening);
     }
     let mut inliers = vec![false; pixels.len()];
-    // Plain and whitened (divided by the noise scale) squared reprojection errors.
+    // Plain and whitened squared reprojection errors.
     let (mut sq, mut sq_white) = (0.0, 0.0);
     for &k in &used {
         inliers[index[k]] = true;
-        let e_sq = reprojection_px(camera, &pose, &world[k], &px[k]).powi(2);
-        sq += e_sq;
-        sq_white += e_sq / (sg[k] * sg[k]);
+        sq += reprojection_px(camera, &pose, &world[k], &px[k]).powi(2);
+        sq_white += whitened_error(camera, &pose, &world[k], &px[k], &whitening[k]).powi(2);
     }
     let inlier_count = used.len();
     if inlier_count < cfg.min_inliers.max(MIN_POINTS) {
@@ -427,8 +530,9 @@ pub struct PnpEvidence {
     pub p0: f64,
     /// Hypotheses scored: RANSAC iterations times the P3P solutions, plus the prior.
     pub hypotheses: f64,
-    /// Per-coordinate reprojection residual scale of the inliers,
-    /// `sqrt(sum |u - pi(T P)|^2 / s^2 / (2 n - 6))` (`s` each pixel's noise scale), pixels.
+    /// Per-coordinate whitened reprojection residual scale of the inliers,
+    /// `sqrt(sum |W (u - pi(T P))|^2 / (2 n - 6))` (`W = I / s` for a pixel of noise scale `s`
+    /// and an exact point; see [`solve_pnp_ransac_with_point_covariances`]), pixels.
     pub sigma_px: f64,
     /// Iterations of the Huber refinement.
     pub iterations: usize,
@@ -470,7 +574,7 @@ pub fn pnp_quality(
 
 /// The uncertainty record of a PnP covariance of `(rho, phi)`: the 6x6 matrix,
 /// `translation_sigma_m = sqrt(tr Sigma_rho)` and `rotation_sigma_deg = sqrt(tr Sigma_phi)`.
-fn pnp_uncertainty(c: &Matrix6<f64>) -> Uncertainty {
+pub(super) fn pnp_uncertainty(c: &Matrix6<f64>) -> Uncertainty {
     Uncertainty {
         translation_sigma_m: Some(rms_of(&block_rows(|r, k| c[(r, k)], 0, 3), 1.0)),
         rotation_sigma_deg: Some(rms_of(
@@ -479,67 +583,5 @@ fn pnp_uncertainty(c: &Matrix6<f64>) -> Uncertainty {
         )),
         covariance: Some(block_rows(|r, k| c[(r, k)], 0, 6)),
         ..Uncertainty::default()
-    }
-}
-
-/// Raises `fit`'s covariance to what the uncertainty of its 3D points implies where that is
-/// wider. PnP's own covariance is the empirical sandwich of its residuals: it sees a point's
-/// error only through the residual it leaves, not through the part the pose absorbs, and not
-/// at all when the points' errors are shared (a keyframe's stereo depths, its pose). With `J_i`
-/// the whitened Jacobian of inlier `i`'s residual in the pose (`jpix [I | -hat(T P)] / s_i`),
-/// `G_i = jpix R / s_i` its Jacobian in the point and `C_i` the point's covariance (world
-/// frame, metres^2), the model covariance at the nominal pixel noise `cfg.sigma_px` is
-///
-/// `Sigma_model = H^-1 (sum_i J_i^T (sigma_px^2 I + G_i C_i G_i^T) J_i) H^-1`,  `H = sum_i J_i^T J_i`
-///
-/// (the Gauss-Newton step's response to both noises), and the result is
-/// [`at_least`]`(Sigma, Sigma_model)`. `world`, `sigmas` (each pixel's relative noise scale)
-/// and `covariances` are index-aligned with `fit.inliers`; points without a covariance add
-/// no point term. The quality's uncertainty follows, and a rotation sigma now above
-/// `cfg.quality.max_rotation_sigma_deg` adds [`Reason::LargeUncertainty`]. Nothing changes
-/// without a covariance in `fit` or when `H` is singular.
-pub fn add_point_covariances(
-    fit: &mut PnpResult,
-    camera: &Camera,
-    world: &[Point3<f64>],
-    sigmas: &[f64],
-    covariances: &[Option<Matrix3<f64>>],
-    cfg: &PnpConfig,
-) {
-    let Some(covariance) = fit.covariance else {
-        return;
-    };
-    let rotation = fit.pose.rotation.to_rotation_matrix();
-    let mut h = Matrix6::zeros();
-    let mut from_points = Matrix6::zeros();
-    for (i, _) in fit.inliers.iter().enumerate().filter(|(_, &inlier)| inlier) {
-        let (Some(p), Some(&s)) = (world.get(i), sigmas.get(i)) else {
-            continue;
-        };
-        let x = (fit.pose * p).coords;
-        let Some((_, jpix)) = project_in_front(camera, &x) else {
-            continue;
-        };
-        let j = jpix * point_jacobian(&x) / s;
-        h += j.transpose() * j;
-        if let Some(c) = covariances.get(i).copied().flatten() {
-            let g = jpix * rotation.matrix() / s;
-            from_points += j.transpose() * (g * c * g.transpose()) * j;
-        }
-    }
-    let Some(h_inv) = h.try_inverse() else {
-        return;
-    };
-    let model = h_inv * (h * cfg.sigma_px.powi(2) + from_points) * h_inv;
-    let total = at_least(&covariance, &model);
-    fit.covariance = Some(total);
-    fit.quality.uncertainty = pnp_uncertainty(&total);
-    if fit
-        .quality
-        .uncertainty
-        .rotation_sigma_deg
-        .is_some_and(|s| s > cfg.quality.max_rotation_sigma_deg)
-    {
-        fit.quality.flag(Reason::LargeUncertainty);
     }
 }
