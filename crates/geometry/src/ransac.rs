@@ -8,6 +8,9 @@
 //! while the score improves) and competes with the best refined model. Comparing raw
 //! hypotheses with raw ones matters: a wrong model polished early would otherwise set a bar
 //! that noisy minimal models of the true one never clear, so they would never be polished.
+//! With [`RansacConfig::lo_skip_shared`] below 1, a hypothesis that scores no better than the
+//! best refined model, has no more inliers and shares nearly all of them with it is not
+//! polished: local optimisation starts from the inliers, so it would find that model again.
 //!
 //! Stopping: the iteration count adapts to the inlier ratio `w` of the best *confirmed* model,
 //! `k = log(1 - p) / log(1 - w^s)` for confidence `p` and sample size `s`. A model is confirmed
@@ -87,6 +90,10 @@ pub struct RansacConfig {
     /// Rounds of local optimisation per new best model (0 disables LO, and then every best
     /// model counts as confirmed for the stopping rule).
     pub lo_rounds: usize,
+    /// Local optimisation skips a hypothesis whose score is no lower than the best refined
+    /// model's, with no more inliers than it, at least this share of them being that model's
+    /// inliers (see the module documentation); above 1 (the default) nothing is skipped.
+    pub lo_skip_shared: f64,
 }
 
 impl RansacConfig {
@@ -121,6 +128,7 @@ impl Default for RansacConfig {
             min_iterations: 100,
             seed: 0,
             lo_rounds: 3,
+            lo_skip_shared: f64::INFINITY,
         }
     }
 }
@@ -196,6 +204,48 @@ const REPRODUCED: f64 = 1e-6;
 struct LocalOptimisation<M> {
     inliers: Vec<usize>,
     models: Vec<M>,
+}
+
+/// The inliers of the best refined model, to tell when polishing a hypothesis would only find
+/// it again ([`RansacConfig::lo_skip_shared`]).
+struct Polished {
+    mask: Vec<bool>,
+    count: usize,
+    score: f64,
+    /// Scratch: a hypothesis's inliers.
+    candidate: Vec<usize>,
+}
+
+impl Polished {
+    /// Remembers `model` (scored `score`) as the best refined one.
+    fn set<E: Estimator>(&mut self, est: &E, model: &E::Model, score: f64, threshold_sq: f64) {
+        inlier_indices(est, model, threshold_sq, &mut self.candidate);
+        self.mask.clear();
+        self.mask.resize(est.len(), false);
+        for &i in &self.candidate {
+            self.mask[i] = true;
+        }
+        self.count = self.candidate.len();
+        self.score = score;
+    }
+
+    /// Whether polishing `model` (scored `score`) would only find the best refined model again:
+    /// it scores no lower, has no more inliers and at least `shared` of them are that model's.
+    fn covers<E: Estimator>(
+        &mut self,
+        est: &E,
+        model: &E::Model,
+        score: f64,
+        threshold_sq: f64,
+        shared: f64,
+    ) -> bool {
+        if shared > 1.0 || self.mask.is_empty() || score < self.score {
+            return false;
+        }
+        inlier_indices(est, model, threshold_sq, &mut self.candidate);
+        let common = self.candidate.iter().filter(|&&i| self.mask[i]).count();
+        self.candidate.len() <= self.count && common as f64 >= shared * self.candidate.len() as f64
+    }
 }
 
 impl<M> LocalOptimisation<M> {
@@ -289,6 +339,12 @@ pub fn ransac_from<E: Estimator>(
         models: Vec::new(),
     };
     let mut best: Option<Scored<E::Model>> = None;
+    let mut polished = Polished {
+        mask: Vec::new(),
+        count: 0,
+        score: f64::INFINITY,
+        candidate: Vec::new(),
+    };
     // Best score of a minimal-sample model: local optimisation runs on every minimal model
     // that beats it, so that a polished wrong model cannot keep raw (noisy) hypotheses of
     // the true one from ever being polished.
@@ -304,12 +360,19 @@ pub fn ransac_from<E: Estimator>(
                 continue;
             }
             best_minimal = score;
+            if polished.covers(est, &m, score, threshold_sq, cfg.lo_skip_shared) {
+                continue;
+            }
+
             let (current, confirmed) = lo.run(est, (m, score, count), threshold_sq, cfg.lo_rounds);
             if best.as_ref().is_some_and(|b| b.1 <= current.1) {
                 continue;
             }
             if confirmed {
                 needed = required_iterations(cfg.confidence, current.2 as f64 / n as f64, s);
+            }
+            if cfg.lo_skip_shared <= 1.0 {
+                polished.set(est, &current.0, current.1, threshold_sq);
             }
             best = Some(current);
         }
@@ -533,5 +596,53 @@ mod tests {
         );
         assert_eq!((capped.model, capped.score), (longer.model, longer.score));
         assert_eq!(capped.inliers, longer.inliers);
+    }
+
+    /// [`Line`] counting its local optimisations.
+    struct Counting(Line, std::cell::Cell<usize>);
+
+    impl Estimator for Counting {
+        type Model = (f64, f64);
+        fn sample_size(&self) -> usize {
+            self.0.sample_size()
+        }
+        fn len(&self) -> usize {
+            self.0.len()
+        }
+        fn fit_minimal(&self, s: &[usize], out: &mut Vec<(f64, f64)>) {
+            self.0.fit_minimal(s, out);
+        }
+        fn fit_nonminimal(&self, s: &[usize], out: &mut Vec<(f64, f64)>) {
+            self.1.set(self.1.get() + 1);
+            self.0.fit_nonminimal(s, out);
+        }
+        fn residual_sq(&self, m: &(f64, f64), i: usize) -> f64 {
+            self.0.residual_sq(m, i)
+        }
+    }
+
+    #[test]
+    fn hypotheses_that_share_the_polished_inliers_are_not_polished_again() {
+        let est = Counting(data(), std::cell::Cell::new(0));
+        let run = |lo_skip_shared| {
+            est.1.set(0);
+            let cfg = RansacConfig {
+                threshold: 0.1,
+                lo_skip_shared,
+                ..Default::default()
+            };
+            (ransac(&est, &cfg).expect("a model"), est.1.get())
+        };
+        let (every, refits_every) = run(f64::INFINITY);
+        let (skipping, refits_skipping) = run(0.9);
+        assert!(
+            refits_skipping < refits_every,
+            "{refits_skipping} refits against {refits_every}"
+        );
+        assert_eq!(skipping.inliers, every.inliers);
+        assert!((skipping.model.0 - every.model.0).abs() < 1e-9);
+        assert!((skipping.model.1 - every.model.1).abs() < 1e-9);
+        // A share above 1 can never be met: nothing is skipped.
+        assert_eq!(run(1.0 + 1e-9).1, refits_every);
     }
 }

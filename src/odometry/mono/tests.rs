@@ -155,8 +155,9 @@ fn random_matches_make_no_map() -> TestResult {
 }
 
 /// A two-view pose judged unreliable makes no map and keeps its reference: 120 true
-/// correspondences seen with several degrees of parallax, among 400 random ones (an inlier
-/// ratio of 0.23, under the quality record's 0.25). The true ones alone make the map.
+/// correspondences seen with several degrees of parallax, among 600 random ones (an inlier
+/// ratio of 0.17, under the quality record's 0.25 even with the random ones that fall near an
+/// epipolar line by chance). The true ones alone make the map.
 #[test]
 fn an_unreliable_two_view_pose_waits_instead_of_making_a_map() -> TestResult {
     let drive = DrivingSequence::new(3, 1);
@@ -187,7 +188,7 @@ fn an_unreliable_two_view_pose_waits_instead_of_making_a_map() -> TestResult {
         }
     }
     let true_pairs = x1.len();
-    for _ in 0..400 {
+    for _ in 0..600 {
         x1.push(nalgebra::Vector2::new(uniform() * w, uniform() * h));
         x2.push(nalgebra::Vector2::new(uniform() * w, uniform() * h));
     }
@@ -205,7 +206,7 @@ fn an_unreliable_two_view_pose_waits_instead_of_making_a_map() -> TestResult {
     let all = (features(&x1, x1.len())?, features(&x2, x2.len())?);
     match initialise(&rules, &all.0, &t_w1, &all.1, (0, 1)) {
         Ok((map, ..)) => {
-            return Err(format!("a map of {} points from 23% inliers", map.points.len()).into())
+            return Err(format!("a map of {} points from 17% inliers", map.points.len()).into())
         }
         Err(failure) => {
             assert!(failure.keep_reference, "{}", failure.why);

@@ -42,10 +42,18 @@ pub struct RelativePoseConfig {
     pub quality: QualityConfig,
 }
 
+/// The two-view searches' [`RansacConfig::lo_skip_shared`]: a hypothesis that has 99% of its
+/// inliers in common with the best refined model (and no more of them, and no lower score) is
+/// not polished again; the chosen model is refined to convergence afterwards.
+pub const LO_SKIP_SHARED: f64 = 0.9;
+
 impl Default for RelativePoseConfig {
     fn default() -> Self {
         Self {
-            ransac: RansacConfig::default(),
+            ransac: RansacConfig {
+                lo_skip_shared: LO_SKIP_SHARED,
+                ..RansacConfig::default()
+            },
             refine: true,
             min_parallax_deg: 0.0,
             focal_uncertainty: 0.005,
