@@ -20,10 +20,13 @@
 //! `min_iterations` samples are drawn whatever the ratio says, so that one early, wrong but
 //! well-supported model cannot end the search before the true one had a chance to be sampled.
 
+use std::collections::VecDeque;
+
 use rand::rngs::StdRng;
+use rand::{Rng, SeedableRng};
+use rayon::prelude::*;
 
 use crate::error::GeometryError;
-use rand::{Rng, SeedableRng};
 
 /// A model family estimated from correspondences, with squared residuals in the units of the
 /// threshold.
@@ -181,6 +184,42 @@ fn draw_sample(rng: &mut StdRng, pool: &mut [usize], k: usize, out: &mut Vec<usi
     }
 }
 
+/// Minimal samples drawn and fitted at once, the fits in parallel, then scored one by one in
+/// the order drawn: the search is the one that fits one sample at a time, with the fitting
+/// spread over the threads (samples fitted beyond where the search stops are discarded).
+const FIT_BATCH: usize = 16;
+
+/// Draws `count` minimal samples in order and fits each ([`Estimator::fit_minimal`], in
+/// parallel); their model lists in the order drawn.
+fn fit_batch<E: Estimator + Sync>(
+    est: &E,
+    rng: &mut StdRng,
+    pool: &mut [usize],
+    count: usize,
+) -> VecDeque<Vec<E::Model>>
+where
+    E::Model: Send,
+{
+    let s = est.sample_size();
+    let samples: Vec<Vec<usize>> = (0..count)
+        .map(|_| {
+            let mut sample = Vec::with_capacity(s);
+            draw_sample(rng, pool, s, &mut sample);
+            sample
+        })
+        .collect();
+    samples
+        .par_iter()
+        .with_min_len(FIT_BATCH / 2)
+        .map(|sample| {
+            let mut models = Vec::new();
+            est.fit_minimal(sample, &mut models);
+            models
+        })
+        .collect::<Vec<_>>()
+        .into()
+}
+
 /// Indices with `residual^2 < threshold_sq`.
 fn inlier_indices<E: Estimator>(
     est: &E,
@@ -311,7 +350,10 @@ impl<M> LocalOptimisation<M> {
 /// assert_eq!(res.inlier_count(), 4);
 /// assert!((res.model - 1.0125).abs() < 1e-9);
 /// ```
-pub fn ransac<E: Estimator>(est: &E, cfg: &RansacConfig) -> Option<RansacResult<E::Model>> {
+pub fn ransac<E: Estimator + Sync>(est: &E, cfg: &RansacConfig) -> Option<RansacResult<E::Model>>
+where
+    E::Model: Send,
+{
     ransac_from(est, cfg, None)
 }
 
@@ -319,11 +361,14 @@ pub fn ransac<E: Estimator>(est: &E, cfg: &RansacConfig) -> Option<RansacResult<
 /// and polished as a minimal-sample model drawn before the first sample: a good guess sets
 /// the bar that later minimal models must beat to be polished, so fewer are; a wrong one is
 /// beaten like any wrong hypothesis. `min_iterations` samples are still drawn.
-pub fn ransac_from<E: Estimator>(
+pub fn ransac_from<E: Estimator + Sync>(
     est: &E,
     cfg: &RansacConfig,
     guess: Option<E::Model>,
-) -> Option<RansacResult<E::Model>> {
+) -> Option<RansacResult<E::Model>>
+where
+    E::Model: Send,
+{
     let n = est.len();
     let s = est.sample_size();
     if n < s || s == 0 {
@@ -332,7 +377,7 @@ pub fn ransac_from<E: Estimator>(
     let threshold_sq = cfg.threshold * cfg.threshold;
     let mut rng = StdRng::seed_from_u64(cfg.seed);
     let mut pool: Vec<usize> = (0..n).collect();
-    let mut sample = Vec::with_capacity(s);
+    let mut fitted: VecDeque<Vec<E::Model>> = VecDeque::new();
     let mut models = Vec::new();
     let mut lo = LocalOptimisation {
         inliers: Vec::new(),
@@ -363,7 +408,6 @@ pub fn ransac_from<E: Estimator>(
             if polished.covers(est, &m, score, threshold_sq, cfg.lo_skip_shared) {
                 continue;
             }
-
             let (current, confirmed) = lo.run(est, (m, score, count), threshold_sq, cfg.lo_rounds);
             if best.as_ref().is_some_and(|b| b.1 <= current.1) {
                 continue;
@@ -376,12 +420,16 @@ pub fn ransac_from<E: Estimator>(
             }
             best = Some(current);
         }
-        if iterations >= needed.max(cfg.min_iterations).min(cfg.max_iterations) {
+        let limit = needed.max(cfg.min_iterations).min(cfg.max_iterations);
+        if iterations >= limit {
             break;
         }
+        if fitted.is_empty() {
+            let count = (limit - iterations).min(FIT_BATCH);
+            fitted = fit_batch(est, &mut rng, &mut pool, count);
+        }
         iterations += 1;
-        draw_sample(&mut rng, &mut pool, s, &mut sample);
-        est.fit_minimal(&sample, &mut models);
+        models = fitted.pop_front().unwrap_or_default();
     }
     let (model, score, _) = best?;
     let inliers: Vec<bool> = (0..n)
@@ -599,7 +647,7 @@ mod tests {
     }
 
     /// [`Line`] counting its local optimisations.
-    struct Counting(Line, std::cell::Cell<usize>);
+    struct Counting(Line, std::sync::atomic::AtomicUsize);
 
     impl Estimator for Counting {
         type Model = (f64, f64);
@@ -613,7 +661,7 @@ mod tests {
             self.0.fit_minimal(s, out);
         }
         fn fit_nonminimal(&self, s: &[usize], out: &mut Vec<(f64, f64)>) {
-            self.1.set(self.1.get() + 1);
+            self.1.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
             self.0.fit_nonminimal(s, out);
         }
         fn residual_sq(&self, m: &(f64, f64), i: usize) -> f64 {
@@ -623,15 +671,16 @@ mod tests {
 
     #[test]
     fn hypotheses_that_share_the_polished_inliers_are_not_polished_again() {
-        let est = Counting(data(), std::cell::Cell::new(0));
+        let est = Counting(data(), std::sync::atomic::AtomicUsize::new(0));
         let run = |lo_skip_shared| {
-            est.1.set(0);
+            est.1.store(0, std::sync::atomic::Ordering::Relaxed);
             let cfg = RansacConfig {
                 threshold: 0.1,
                 lo_skip_shared,
                 ..Default::default()
             };
-            (ransac(&est, &cfg).expect("a model"), est.1.get())
+            let result = ransac(&est, &cfg).expect("a model");
+            (result, est.1.load(std::sync::atomic::Ordering::Relaxed))
         };
         let (every, refits_every) = run(f64::INFINITY);
         let (skipping, refits_skipping) = run(0.9);

@@ -173,6 +173,11 @@ fn general_pose(
         .filter(|&k| est.residual_sq(&e, k) < gate_sq.max(thr_sq))
         .collect();
     let e_rm = row_major(&e);
+    // The covariance's two parts are independent: computed at once.
+    let (covariance, intrinsics) = rayon::join(
+        || sampson_covariance(data, &gated, tv.focal, &state, chosen.sigma_px),
+        || intrinsics_covariance(tv, &gated, &state),
+    );
     let evidence = quality::Evidence {
         candidates: tv.n_in,
         inliers: used.len(),
@@ -182,8 +187,7 @@ fn general_pose(
         sample: MIN_CORRESPONDENCES,
         sigma_px: chosen.sigma_px,
         translation: true,
-        covariance: sampson_covariance(data, &gated, tv.focal, &state, chosen.sigma_px)
-            .map(|c| c + intrinsics_covariance(tv, &gated, &state)),
+        covariance: covariance.map(|c| c + intrinsics),
         iterations: sel.iterations.total(),
     };
     let direction_unseen = final_rec.median_parallax_deg < tv.cfg.min_parallax_deg
