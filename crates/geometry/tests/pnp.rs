@@ -183,6 +183,39 @@ fn covariance_is_calibrated_at_known_pixel_noise() {
     }
 }
 
+/// `world` with stereo-like depth noise: each point moved along its ray from the camera
+/// `reference` (world pose) by a relative `sigma_z / z` of `relative_sigma` (seeded), and that
+/// noise's covariance `relative_sigma^2 ray ray^T`.
+fn depth_noise(
+    world: &[Point3<f64>],
+    reference: &Isometry3<f64>,
+    relative_sigma: f64,
+    seed: u64,
+) -> (Vec<Point3<f64>>, Vec<Option<Matrix3<f64>>>) {
+    let mut rng = StdRng::seed_from_u64(seed);
+    world
+        .iter()
+        .map(|p| {
+            let ray = p.coords - reference.translation.vector;
+            let shift = ray * (relative_sigma * common::gauss(&mut rng));
+            let c = ray * ray.transpose() * relative_sigma.powi(2);
+            (Point3::from(p.coords + shift), Some(c))
+        })
+        .unzip()
+}
+
+/// PnP at 0.5 px pixel noise with a threshold wide enough for the points' depth noise.
+fn point_noise_config() -> PnpConfig {
+    PnpConfig {
+        ransac: RansacConfig {
+            threshold: 8.0,
+            ..PnpConfig::default().ransac
+        },
+        sigma_px: 0.5,
+        ..Default::default()
+    }
+}
+
 /// Mean NEES per degree of freedom of the rotation and translation blocks over 200 scenes
 /// whose 80 points carry stereo-like depth noise (relative `sigma_Z / Z` of 2% along their
 /// ray from a reference camera 1 m behind, as a keyframe's stereo points seen from the next
@@ -193,28 +226,12 @@ fn pnp_nees_with_point_noise() -> [(f64, f64); 2] {
     const SEEDS: u64 = 200;
     const RELATIVE_DEPTH_SIGMA: f64 = 0.02;
     let cam = distorted_camera();
-    let cfg = PnpConfig {
-        ransac: RansacConfig {
-            threshold: 8.0,
-            ..PnpConfig::default().ransac
-        },
-        sigma_px: 0.5,
-        ..Default::default()
-    };
+    let cfg = point_noise_config();
     let mut sums = [(0.0, 0.0); 2];
     for seed in 0..SEEDS {
         let (t_cw, world, px, _) = pnp_scene(9000 + seed, 80, 0.0, 0.5, &cam);
-        let mut rng = StdRng::seed_from_u64(seed);
         let reference = t_cw.inverse() * Isometry3::translation(0.0, 0.0, -1.0);
-        let (noisy, covariances): (Vec<Point3<f64>>, Vec<Option<Matrix3<f64>>>) = world
-            .iter()
-            .map(|p| {
-                let ray = p.coords - reference.translation.vector;
-                let shift = ray * (RELATIVE_DEPTH_SIGMA * common::gauss(&mut rng));
-                let c = ray * ray.transpose() * RELATIVE_DEPTH_SIGMA.powi(2);
-                (Point3::from(p.coords + shift), Some(c))
-            })
-            .unzip();
+        let (noisy, covariances) = depth_noise(&world, &reference, RELATIVE_DEPTH_SIGMA, seed);
         let fit = solve_pnp_ransac(&noisy, &px, &cam, None, &cfg).unwrap();
         let mut raised = fit.clone();
         let sigmas = vec![1.0; noisy.len()];
@@ -262,28 +279,12 @@ fn pnp_errors_with_point_noise() -> [(f64, f64, f64, f64); 2] {
     const SEEDS: u64 = 150;
     const RELATIVE_DEPTH_SIGMA: f64 = 0.05;
     let cam = distorted_camera();
-    let cfg = PnpConfig {
-        ransac: RansacConfig {
-            threshold: 8.0,
-            ..PnpConfig::default().ransac
-        },
-        sigma_px: 0.5,
-        ..Default::default()
-    };
+    let cfg = point_noise_config();
     let mut sums = [(0.0, 0.0, 0.0, 0.0); 2];
     for seed in 0..SEEDS {
         let (t_cw, world, px, _) = pnp_scene(7000 + seed, 80, 0.0, 0.5, &cam);
-        let mut rng = StdRng::seed_from_u64(seed);
         let reference = t_cw.inverse() * Isometry3::translation(0.5, 0.0, -1.0);
-        let (noisy, covariances): (Vec<Point3<f64>>, Vec<Option<Matrix3<f64>>>) = world
-            .iter()
-            .map(|p| {
-                let ray = p.coords - reference.translation.vector;
-                let shift = ray * (RELATIVE_DEPTH_SIGMA * common::gauss(&mut rng));
-                let c = ray * ray.transpose() * RELATIVE_DEPTH_SIGMA.powi(2);
-                (Point3::from(p.coords + shift), Some(c))
-            })
-            .unzip();
+        let (noisy, covariances) = depth_noise(&world, &reference, RELATIVE_DEPTH_SIGMA, seed);
         let sigmas = vec![1.0; noisy.len()];
         let pixel_only = solve_pnp_ransac_with_sigmas(&noisy, &px, &sigmas, &cam, None, &cfg);
         let weighed = solve_pnp_ransac_with_point_covariances(
