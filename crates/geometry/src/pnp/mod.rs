@@ -16,7 +16,7 @@
 //!
 //! Points with a covariance of their own (a stereo point's depth noise along its ray,
 //! [`solve_pnp_ransac_with_point_covariances`]) widen their residual's noise to the 2x2
-//! `s_i^2 I + G_i C_i G_i^T / sigma_px^2` ([`point_noise`]): a far point then constrains the
+//! `s_i^2 I + G_i C_i G_i^T / sigma_px^2` (`pnp/point_noise.rs`): a far point then constrains the
 //! pose across the direction its depth error moves its image, and hardly along it.
 
 mod point_noise;
