@@ -55,9 +55,7 @@ use std::time::Instant;
 use nalgebra::{Isometry3, Matrix3, Point3, Vector2};
 use vofront_core::Camera;
 use vofront_features::{match_descriptors, match_windowed, Features, Match, MatchConfig};
-use vofront_geometry::pnp::{
-    solve_pnp_ransac_with_point_covariances, solve_pnp_ransac_with_sigmas, PnpConfig, PnpResult,
-};
+use vofront_geometry::pnp::{solve_pnp_ransac_with_point_covariances, PnpConfig, PnpResult};
 use vofront_robust::{Quality, Verdict};
 
 use crate::dataset::Frame;
@@ -356,6 +354,8 @@ pub(crate) struct Located {
     /// The pixel noise of each match's current keypoint (its pyramid level's scale), pixels:
     /// the sigmas PnP weighted the match with.
     pub sigmas: Vec<f64>,
+    /// The covariance of each match's point (`None`: exact), as PnP weighted it.
+    pub covariances: Vec<Option<Matrix3<f64>>>,
     /// `T_cur_from`: the points' frame into the current camera.
     pub fit: Result<PnpResult, VoError>,
 }
@@ -439,31 +439,20 @@ impl PointLocator<'_> {
             .iter()
             .map(|m| f64::from(current.scales()[m.train as usize]))
             .collect();
-        let fit = match covariances {
-            None => solve_pnp_ransac_with_sigmas(
-                &world,
-                &pixels,
-                &sigmas,
-                self.camera,
-                Some(prior),
-                self.pnp,
-            ),
-            Some(covariances) => {
-                let matched: Vec<Option<Matrix3<f64>>> = matches
-                    .iter()
-                    .map(|m| covariances.get(m.query as usize).copied().flatten())
-                    .collect();
-                solve_pnp_ransac_with_point_covariances(
-                    &world,
-                    &pixels,
-                    &sigmas,
-                    &matched,
-                    self.camera,
-                    Some(prior),
-                    self.pnp,
-                )
-            }
-        }
+        // Without covariances every point is exact, which is the pixel-only solve.
+        let point_covariances: Vec<Option<Matrix3<f64>>> = matches
+            .iter()
+            .map(|m| covariances.and_then(|c| c.get(m.query as usize).copied().flatten()))
+            .collect();
+        let fit = solve_pnp_ransac_with_point_covariances(
+            &world,
+            &pixels,
+            &sigmas,
+            &point_covariances,
+            self.camera,
+            Some(prior),
+            self.pnp,
+        )
         .map_err(VoError::from)
         .and_then(|fit| {
             if fit.quality.verdict == Verdict::Failed {
@@ -485,6 +474,7 @@ impl PointLocator<'_> {
             matches,
             points: world,
             sigmas,
+            covariances: point_covariances,
             fit,
         }
     }

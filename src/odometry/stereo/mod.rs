@@ -298,6 +298,7 @@ impl StereoTracker {
             matches,
             points: world,
             sigmas,
+            covariances,
             fit,
         } = search.locate(
             &query,
@@ -313,11 +314,8 @@ impl StereoTracker {
                 return FrameEstimate::lost(predicted, why.to_string(), start);
             }
         };
-        // The map points' own depth noise, which PnP takes as exact, widens the covariance.
-        let covariances: Vec<Option<Matrix3<f64>>> = matches
-            .iter()
-            .map(|m| map.points.get(&ids[m.query as usize])?.covariance)
-            .collect();
+        // The map points' own depth noise, shared by the frames that see them (which the
+        // residuals' sandwich cannot see), widens the covariance.
         add_point_covariances(
             &mut fit,
             camera,

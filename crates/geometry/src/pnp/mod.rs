@@ -224,12 +224,20 @@ pub(crate) fn project_in_front(
     camera.project_with_jacobian(x)
 }
 
-/// Pixel reprojection error of the world point `p` observed at `u` under `T_cw`, infinite
-/// behind the camera.
+/// Reprojection residual `pi(T_cw P) - u` (pixels) of the world point `p` observed at `u`;
+/// `None` behind the camera or outside the lens's range.
+fn reprojection(
+    camera: &Camera,
+    t: &Isometry3<f64>,
+    p: &Point3<f64>,
+    u: &Vector2<f64>,
+) -> Option<Vector2<f64>> {
+    camera.project(&(t * p).coords).map(|q| q - u)
+}
+
+/// Length of [`reprojection`], pixels; infinite behind the camera.
 fn reprojection_px(camera: &Camera, t: &Isometry3<f64>, p: &Point3<f64>, u: &Vector2<f64>) -> f64 {
-    camera
-        .project(&(t * p).coords)
-        .map_or(f64::INFINITY, |q| (q - u).norm())
+    reprojection(camera, t, p, u).map_or(f64::INFINITY, |r| r.norm())
 }
 
 /// Estimates the camera pose `T_cw` from world points and their observed (distorted) pixels:

@@ -9,7 +9,7 @@
 
 use nalgebra::{Isometry3, Matrix2, Matrix3, Matrix6, Point3, Vector2};
 
-use super::{pnp_uncertainty, project_in_front, PnpConfig, PnpResult};
+use super::{pnp_uncertainty, project_in_front, reprojection, PnpConfig, PnpResult};
 use crate::camera::Camera;
 use crate::lie::point_jacobian;
 use vofront_robust::{at_least, Reason};
@@ -57,9 +57,7 @@ pub(super) fn whitened_error(
     u: &Vector2<f64>,
     whitening: &Matrix2<f64>,
 ) -> f64 {
-    camera
-        .project(&(t * p).coords)
-        .map_or(f64::INFINITY, |q| (whitening * (q - u)).norm())
+    reprojection(camera, t, p, u).map_or(f64::INFINITY, |r| (whitening * r).norm())
 }
 
 /// Raises `fit`'s covariance to what the uncertainty of its 3D points implies where that is

@@ -42,7 +42,7 @@ pub struct RelativePoseConfig {
     pub quality: QualityConfig,
 }
 
-/// The two-view searches' [`RansacConfig::lo_skip_shared`]: a hypothesis that has 99% of its
+/// The two-view searches' [`RansacConfig::lo_skip_shared`]: a hypothesis that has 90% of its
 /// inliers in common with the best refined model (and no more of them, and no lower score) is
 /// not polished again; the chosen model is refined to convergence afterwards.
 pub const LO_SKIP_SHARED: f64 = 0.9;
