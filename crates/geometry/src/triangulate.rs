@@ -3,7 +3,7 @@
 //! Frames: the result is in camera 1; `pose = T_21` maps camera-1 points into camera 2,
 //! `X2 = R X1 + t`. The rays are bearings or homogeneous normalized coordinates.
 
-use nalgebra::{Isometry3, Matrix4, Point3, Vector3, Vector4};
+use nalgebra::{Isometry3, Matrix3, Matrix4, Point3, Vector3, Vector4};
 
 use crate::residual::{row_major, Epipolar};
 
@@ -54,22 +54,45 @@ pub fn ray_depths(
     f1: &Vector3<f64>,
     f2: &Vector3<f64>,
 ) -> Option<(f64, f64)> {
-    let rt = pose.rotation.inverse();
-    let c2 = -(rt * pose.translation.vector);
-    let d2 = rt * f2;
-    // Minimise |l1 f1 - c2 - l2 d2|^2: [f1.f1, -f1.d2; -f1.d2, d2.d2] [l1 l2] = [f1.c2, -d2.c2].
-    let a = f1.dot(f1);
-    let b = f1.dot(&d2);
-    let c = d2.dot(&d2);
-    let det = a * c - b * b;
-    if det <= 1e-14 * a * c {
-        return None;
+    SecondCamera::new(pose).ray_depths(f1, f2)
+}
+
+/// Camera 2 of a pose `T_21` seen from camera 1: `R^T` and the centre `c2 = -R^T t`, computed
+/// once for the [`ray_depths`] of many ray pairs under one pose.
+pub(crate) struct SecondCamera {
+    rt: Matrix3<f64>,
+    c2: Vector3<f64>,
+}
+
+impl SecondCamera {
+    /// Camera 2 of `pose`.
+    pub(crate) fn new(pose: &Isometry3<f64>) -> Self {
+        let rt = pose.rotation.to_rotation_matrix().transpose();
+        let c2 = -(rt * pose.translation.vector);
+        Self {
+            rt: *rt.matrix(),
+            c2,
+        }
     }
-    let r1 = f1.dot(&c2);
-    let r2 = -d2.dot(&c2);
-    let l1 = (c * r1 + b * r2) / det;
-    let l2 = (b * r1 + a * r2) / det;
-    Some((l1, l2))
+
+    /// [`ray_depths`] of the rays `f1` (camera 1) and `f2` (camera 2).
+    #[inline]
+    pub(crate) fn ray_depths(&self, f1: &Vector3<f64>, f2: &Vector3<f64>) -> Option<(f64, f64)> {
+        let (c2, d2) = (self.c2, self.rt * f2);
+        // Minimise |l1 f1 - c2 - l2 d2|^2: [f1.f1, -f1.d2; -f1.d2, d2.d2] [l1 l2] = [f1.c2, -d2.c2].
+        let a = f1.dot(f1);
+        let b = f1.dot(&d2);
+        let c = d2.dot(&d2);
+        let det = a * c - b * b;
+        if det <= 1e-14 * a * c {
+            return None;
+        }
+        let r1 = f1.dot(&c2);
+        let r2 = -d2.dot(&c2);
+        let l1 = (c * r1 + b * r2) / det;
+        let l2 = (b * r1 + a * r2) / det;
+        Some((l1, l2))
+    }
 }
 
 /// Inverse-depth-weighted midpoint triangulation (Lee and Civera 2019): with `P1 = l1 f1` and
@@ -92,14 +115,13 @@ pub fn triangulate_midpoint(
     f1: &Vector3<f64>,
     f2: &Vector3<f64>,
 ) -> Option<Point3<f64>> {
-    let (l1, l2) = ray_depths(pose, f1, f2)?;
+    let camera = SecondCamera::new(pose);
+    let (l1, l2) = camera.ray_depths(f1, f2)?;
     if !(l1 > 0.0 && l2 > 0.0) {
         return None;
     }
-    let rt = pose.rotation.inverse();
-    let c2 = -(rt * pose.translation.vector);
-    let d2 = rt * f2;
-    let (p1, p2) = (f1 * l1, c2 + d2 * l2);
+    let d2 = camera.rt * f2;
+    let (p1, p2) = (f1 * l1, camera.c2 + d2 * l2);
     let (w1, w2) = (1.0 / (f1.norm() * l1), 1.0 / (d2.norm() * l2));
     let p = if w1.is_finite() && w2.is_finite() {
         (p1 * w1 + p2 * w2) / (w1 + w2)

@@ -93,15 +93,20 @@ pub struct IrlsConfig {
     pub scale: ScaleMode,
     /// The driver's settings; `min_valid` below `N` is raised to `N`.
     pub lm: LmConfig,
+    /// Whether to compute [`IrlsResult::covariance`] (one more pass over the final rows);
+    /// `false` for inner solves whose covariance nobody reads, which then get `None`.
+    pub covariance: bool,
 }
 
 impl Default for IrlsConfig {
-    /// The default loss, a MAD scale floored at 1e-9 and the default [`LmConfig`].
+    /// The default loss, a MAD scale floored at 1e-9, the default [`LmConfig`] and the
+    /// covariance on.
     fn default() -> Self {
         Self {
             loss: Loss::default(),
             scale: ScaleMode::Mad { min_sigma: 1e-9 },
             lm: LmConfig::default(),
+            covariance: true,
         }
     }
 }
@@ -130,7 +135,8 @@ pub struct IrlsResult<S, const N: usize> {
     /// `H = J^T W J` at the final state.
     pub hessian: SMatrix<f64, N, N>,
     /// Sandwich covariance of the increment ([`crate::sandwich_covariance`]); `None` (unknown)
-    /// when `H` is singular or worse conditioned than `max_condition`.
+    /// when `H` is singular or worse conditioned than `max_condition`, or not asked for
+    /// ([`IrlsConfig::covariance`]).
     pub covariance: Option<SMatrix<f64, N, N>>,
 }
 
@@ -235,15 +241,18 @@ pub fn irls<P: Problem<N>, const N: usize>(
     let (loss, scale) = (cfg.loss, rows_problem.scale);
     let residuals = std::mem::take(&mut rows_problem.rows.residuals);
     let weights = residuals.iter().map(|r| loss.weight(r / scale)).collect();
-    let covariance = out.system.covariance(lm.max_condition).and_then(|_| {
-        let rows = rows_problem
-            .rows
-            .jacobians
-            .iter()
-            .copied()
-            .zip(residuals.iter().copied());
-        sandwich_covariance(rows, &loss, scale, &[false; N])
-    });
+    let wanted = cfg.covariance.then_some(());
+    let covariance = wanted
+        .and_then(|_| out.system.covariance(lm.max_condition))
+        .and_then(|_| {
+            let rows = rows_problem
+                .rows
+                .jacobians
+                .iter()
+                .copied()
+                .zip(residuals.iter().copied());
+            sandwich_covariance(rows, &loss, scale, &[false; N])
+        });
     Ok(IrlsResult {
         state: out.state,
         weights,

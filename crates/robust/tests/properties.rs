@@ -230,3 +230,23 @@ fn irls_covariance_is_whites_estimator_for_least_squares() {
     assert!((covariance - expected).abs().max() < 1e-9 * expected.abs().max());
     assert!(fit.costs.windows(2).all(|c| c[1] <= c[0]));
 }
+
+#[test]
+fn irls_without_covariance_reaches_the_same_state_and_reports_none() {
+    let points = line_with_outliers(0.5, 2.0, 11);
+    let with = irls(
+        &mut Line(points.clone()),
+        Vector2::zeros(),
+        &IrlsConfig::default(),
+    )
+    .unwrap();
+    let without_cfg = IrlsConfig {
+        covariance: false,
+        ..IrlsConfig::default()
+    };
+    let without = irls(&mut Line(points), Vector2::zeros(), &without_cfg).unwrap();
+    assert!(with.covariance.is_some());
+    assert!(without.covariance.is_none());
+    assert_eq!(with.state, without.state);
+    assert_eq!(with.hessian, without.hessian);
+}

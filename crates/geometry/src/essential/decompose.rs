@@ -2,7 +2,7 @@
 
 use nalgebra::{Isometry3, Matrix3, Point3, Rotation3, Translation3, UnitQuaternion, Vector3};
 
-use crate::triangulate::{parallax_deg, ray_depths, triangulate_corrected};
+use crate::triangulate::{parallax_deg, triangulate_corrected, SecondCamera};
 
 /// The four candidates `(R, t)` with `E ~ [t]_x R`, `|t| = 1`: with `E = U S V^T`
 /// (`det U = det V = 1`) and `W` the rotation by 90 degrees about `z`,
@@ -65,14 +65,76 @@ fn count_in_front(
     used: &[bool],
     far: f64,
 ) -> usize {
+    let camera = SecondCamera::new(pose);
     x1.iter()
         .zip(x2)
         .zip(used)
         .filter(|((a, b), &u)| {
-            u && ray_depths(pose, a, b)
+            u && camera
+                .ray_depths(a, b)
                 .is_some_and(|(l1, l2)| l1 > 0.0 && l2 > 0.0 && a.norm() * l1 < far)
         })
         .count()
+}
+
+/// The candidate poses with their numbers of used correspondences in front of both cameras
+/// and closer than `far`, most first; equal counts (the two-fold ambiguity of a plane) prefer
+/// the smaller rotation, the usual case between nearby video frames.
+fn rank_by_chirality(
+    candidates: &[(Rotation3<f64>, Vector3<f64>)],
+    x1: &[Vector3<f64>],
+    x2: &[Vector3<f64>],
+    used: &[bool],
+    far: f64,
+) -> Vec<(usize, Isometry3<f64>)> {
+    let mut ranked: Vec<(usize, Isometry3<f64>)> = candidates
+        .iter()
+        .map(|(r, t)| {
+            let pose = Isometry3::from_parts(
+                Translation3::from(*t),
+                UnitQuaternion::from_rotation_matrix(r),
+            );
+            (count_in_front(&pose, x1, x2, used, far), pose)
+        })
+        .collect();
+    ranked.sort_by(|a, b| {
+        b.0.cmp(&a.0)
+            .then(a.1.rotation.angle().total_cmp(&b.1.rotation.angle()))
+    });
+    ranked
+}
+
+/// The candidate pose with the most used correspondences in front of both cameras and closer
+/// than the far limit, with that number; the choice of [`select_by_chirality`] without its
+/// triangulation, for callers that only need the pose.
+///
+/// ```
+/// use nalgebra::{Rotation3, Vector3};
+/// use vofront_geometry::essential::{
+///     best_by_chirality, decompose_essential, select_by_chirality, RecoverConfig,
+/// };
+/// let r = Rotation3::new(Vector3::new(0.02, -0.1, 0.03));
+/// let t = Vector3::new(0.2, -0.1, 1.0).normalize();
+/// let x1: Vec<Vector3<f64>> = (0..30)
+///     .map(|i| Vector3::new((i as f64 * 0.7).sin(), (i as f64 * 1.3).cos(), 4.0 + (i % 7) as f64))
+///     .collect();
+/// let x2: Vec<Vector3<f64>> = x1.iter().map(|p| r * p + t).collect();
+/// let candidates = decompose_essential(&(vofront_geometry::lie::hat(&t) * r.matrix()));
+/// let (used, cfg) = (vec![true; 30], RecoverConfig::default());
+/// let (pose, good) = best_by_chirality(&candidates, &x1, &x2, &used, &cfg).unwrap();
+/// let full = select_by_chirality(&candidates, &x1, &x2, &used, &cfg).unwrap();
+/// assert_eq!((pose, good), (full.pose, full.good));
+/// assert!((pose.translation.vector - t).norm() < 1e-9 && good == 30);
+/// ```
+pub fn best_by_chirality(
+    candidates: &[(Rotation3<f64>, Vector3<f64>)],
+    x1: &[Vector3<f64>],
+    x2: &[Vector3<f64>],
+    used: &[bool],
+    cfg: &RecoverConfig,
+) -> Option<(Isometry3<f64>, usize)> {
+    let (good, pose) = *rank_by_chirality(candidates, x1, x2, used, cfg.far_distance).first()?;
+    Some((pose, good))
 }
 
 /// Chooses, among candidate poses, the one with the most correspondences (where `used`) in
@@ -84,34 +146,11 @@ pub fn select_by_chirality(
     used: &[bool],
     cfg: &RecoverConfig,
 ) -> Option<PoseRecovery> {
-    let poses: Vec<Isometry3<f64>> = candidates
-        .iter()
-        .map(|(r, t)| {
-            Isometry3::from_parts(
-                Translation3::from(*t),
-                UnitQuaternion::from_rotation_matrix(r),
-            )
-        })
-        .collect();
-    let mut counts: Vec<(usize, usize)> = poses
-        .iter()
-        .enumerate()
-        .map(|(k, p)| (count_in_front(p, x1, x2, used, cfg.far_distance), k))
-        .collect();
-    // Most points in front first; equal counts (the two-fold ambiguity of a plane) prefer the
-    // smaller rotation, the usual case between nearby video frames.
-    counts.sort_by(|a, b| {
-        b.0.cmp(&a.0).then(
-            poses[a.1]
-                .rotation
-                .angle()
-                .total_cmp(&poses[b.1].rotation.angle()),
-        )
-    });
-    let &(_, best) = counts.first()?;
-    let second_good = counts.get(1).map_or(0, |c| c.0);
-    let runner_up = counts.get(1).map(|c| poses[c.1]);
-    let pose = poses[best];
+    let ranked = rank_by_chirality(candidates, x1, x2, used, cfg.far_distance);
+    let &(_, pose) = ranked.first()?;
+    let second_good = ranked.get(1).map_or(0, |c| c.0);
+    let runner_up = ranked.get(1).map(|c| c.1);
+    let camera = SecondCamera::new(&pose);
     let mut parallax = Vec::with_capacity(x1.len());
     let points: Vec<Option<Point3<f64>>> = x1
         .iter()
@@ -121,7 +160,7 @@ pub fn select_by_chirality(
             if !u {
                 return None;
             }
-            let (l1, l2) = ray_depths(&pose, a, b)?;
+            let (l1, l2) = camera.ray_depths(a, b)?;
             if !(l1 > 0.0 && l2 > 0.0 && (a * l1).norm() < cfg.far_distance) {
                 return None;
             }

@@ -80,9 +80,15 @@ pub fn essential_8pt(x1: &[Vector3<f64>], x2: &[Vector3<f64>], out: &mut Vec<Mat
     for (p, q) in x1.iter().zip(x2) {
         let a = t1 * Vector3::new(p.x / p.z, p.y / p.z, 1.0);
         let b = t2 * Vector3::new(q.x / q.z, q.y / q.z, 1.0);
-        let row = SMatrix::<f64, 9, 1>::from_fn(|k, _| b[k / 3] * a[k % 3]);
-        ata += row * row.transpose();
+        let row: [f64; 9] = std::array::from_fn(|k| b[k / 3] * a[k % 3]);
+        // The upper triangle only; the lower one is filled by symmetry below.
+        for j in 0..9 {
+            for i in 0..=j {
+                ata[(i, j)] += row[i] * row[j];
+            }
+        }
     }
+    ata.fill_lower_triangle_with_upper_triangle();
     if !ata.iter().all(|v| v.is_finite()) {
         return;
     }

@@ -12,7 +12,8 @@ mod five_point;
 /// one implementation).
 pub use crate::residual::{epipolar_distances_sq, sampson_sq as sampson_error_sq};
 pub use decompose::{
-    decompose_essential, recover_pose, select_by_chirality, PoseRecovery, RecoverConfig,
+    best_by_chirality, decompose_essential, recover_pose, select_by_chirality, PoseRecovery,
+    RecoverConfig,
 };
 pub use eight_point::{essential_8pt, project_to_essential};
 pub use five_point::essential_5pt;

@@ -128,6 +128,7 @@ fn huber_irls(sigma_px: f64, max_iterations: usize) -> IrlsConfig {
             max_iterations,
             ..LmConfig::default()
         },
+        covariance: true,
     }
 }
 

@@ -5,7 +5,7 @@ use nalgebra::{Matrix3, Vector2, Vector3};
 use super::correspondences::Correspondences;
 use super::refine::local_refinement;
 use crate::essential::{
-    decompose_essential, essential_5pt, essential_8pt, select_by_chirality, RecoverConfig,
+    best_by_chirality, decompose_essential, essential_5pt, essential_8pt, RecoverConfig,
 };
 use crate::homography::homography_dlt;
 use crate::lie::hat;
@@ -48,18 +48,15 @@ impl Estimator for EssentialEstimator<'_> {
             return;
         };
         let used = vec![true; a.len()];
-        let rec = select_by_chirality(
+        let best = best_by_chirality(
             &decompose_essential(&e8),
             &a,
             &b,
             &used,
             &RecoverConfig::default(),
         );
-        if let Some(rec) = rec.filter(|r| r.good >= 5) {
-            let init = (
-                rec.pose.rotation.to_rotation_matrix(),
-                rec.pose.translation.vector,
-            );
+        if let Some((pose, _)) = best.filter(|&(_, good)| good >= 5) {
+            let init = (pose.rotation.to_rotation_matrix(), pose.translation.vector);
             let (r, t) = local_refinement(self.0, indices, self.1, init, LO_ITERATIONS);
             out.push(hat(&t) * r.matrix());
         }

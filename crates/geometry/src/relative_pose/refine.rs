@@ -10,7 +10,7 @@
 
 use std::collections::HashMap;
 
-use nalgebra::{Matrix3, Matrix5, Rotation3, SMatrix, SVector, Vector2, Vector3};
+use nalgebra::{Matrix5, Rotation3, SMatrix, SVector, Vector2, Vector3};
 use vofront_robust::{
     at_least, clustered_sandwich_covariance, irls, Convergence, IrlsConfig, LmConfig, Loss,
     NormalEquations, Problem, Rows, ScaleMode,
@@ -45,40 +45,39 @@ struct SampsonProblem<'a> {
 impl Problem<5> for SampsonProblem<'_> {
     type State = RelState;
 
+    /// With `y = R x1`, `u = [t]x^T x2 = x2 x t`, `p = ((E x1)_1, (E x1)_2, 0)` and
+    /// `q = ((E^T x2)_1, (E^T x2)_2, 0)`, the derivatives of `c = x2^T E x1` and of
+    /// `D / 2 = p . (dE x1) + q . (dE^T x2)` are dot products with cross products:
+    /// `dE = [t]x [phi]x R` gives `dc = phi . (y x u)`, `dD / 2 = phi . (y x (p x t) + Rq x u)`;
+    /// `dE = [b]x R` gives `dc = b . (y x x2)`, `dD / 2 = b . (y x p + Rq x x2)`. Then
+    /// `dr = f / sqrt(D) (dc - c / D dD / 2)`.
     fn evaluate(&mut self, state: &RelState, rows: &mut Rows<5>) {
-        // Derivatives of `E = [t]x R`: `[t]x [e_k]x R` for the rotation increments and
-        // `[b_k]x R` for the translation ones (the normalisation of `t` is first-order flat).
-        let r = state.0.matrix();
-        let e = hat(&state.1) * r;
-        let (b1, b2) = tangent_basis(&state.1);
-        let tx = hat(&state.1);
-        let g: [Matrix3<f64>; 5] = [
-            tx * hat(&Vector3::x()) * r,
-            tx * hat(&Vector3::y()) * r,
-            tx * hat(&Vector3::z()) * r,
-            hat(&b1) * r,
-            hat(&b2) * r,
-        ];
-        let e_rm = row_major(&e);
+        let (r, t) = (state.0.matrix(), state.1);
+        let e_rm = row_major(&(hat(&t) * r));
+        let (b1, b2) = tangent_basis(&t);
         for &i in self.indices {
             let ep = self.data.epipolar(&e_rm, i);
             if !ep.is_regular() {
                 continue;
             }
             let (x1, x2) = (self.data.ray1(i), self.data.ray2(i));
-            let ([l2x, l2y], [l1x, l1y], c, d) = (ep.l2, ep.l1, ep.c, ep.d);
-            let inv_sqrt = 1.0 / d.sqrt();
-            let res = self.focal * c * inv_sqrt;
-            // r = f c / sqrt(d): dr = f / sqrt(d) (dc - c dd / (2 d)).
-            let half_c_over_d = 0.5 * c / d;
-            let j = SVector::<f64, 5>::from_fn(|k, _| {
-                let gx1 = g[k] * x1;
-                let gtx2 = g[k].transpose() * x2;
-                let dc = x2.dot(&gx1);
-                let dd = 2.0 * (l2x * gx1.x + l2y * gx1.y + l1x * gtx2.x + l1y * gtx2.y);
-                self.focal * inv_sqrt * (dc - half_c_over_d * dd)
-            });
-            rows.push(j, res);
+            let (p, q) = (
+                Vector3::new(ep.l2[0], ep.l2[1], 0.0),
+                Vector3::new(ep.l1[0], ep.l1[1], 0.0),
+            );
+            let (y, rq, u) = (r * x1, r * q, x2.cross(&t));
+            let c_over_d = ep.c / ep.d;
+            let rotation = y.cross(&u) - (y.cross(&p.cross(&t)) + rq.cross(&u)) * c_over_d;
+            let translation = y.cross(&x2) - (y.cross(&p) + rq.cross(&x2)) * c_over_d;
+            let scale = self.focal / ep.d.sqrt();
+            let j = SVector::<f64, 5>::new(
+                scale * rotation.x,
+                scale * rotation.y,
+                scale * rotation.z,
+                scale * b1.dot(&translation),
+                scale * b2.dot(&translation),
+            );
+            rows.push(j, scale * ep.c);
         }
     }
 
@@ -310,32 +309,18 @@ pub fn refine_relative_pose_fit(
         data,
         indices,
         focal,
-        sigma_px,
-        loss,
+        &sampson_irls(sigma_px, loss, REFINE_ITERATIONS),
         init,
-        REFINE_ITERATIONS,
     )
 }
 
 /// Iterations of a full refinement ([`refine_relative_pose_fit`]).
 const REFINE_ITERATIONS: usize = 20;
 
-/// [`refine_relative_pose_fit`] stopped after at most `max_iterations` iterations.
-fn refine_fit(
-    data: &Correspondences,
-    indices: &[usize],
-    focal: f64,
-    sigma_px: f64,
-    loss: Loss,
-    init: RelState,
-    max_iterations: usize,
-) -> Option<RelRefinement> {
-    let mut problem = SampsonProblem {
-        data,
-        indices,
-        focal,
-    };
-    let cfg = IrlsConfig {
+/// The IRLS settings of a Sampson refinement: `loss` on the residuals over `sigma_px`, at
+/// most `max_iterations` iterations, with the covariance.
+fn sampson_irls(sigma_px: f64, loss: Loss, max_iterations: usize) -> IrlsConfig {
+    IrlsConfig {
         loss,
         scale: ScaleMode::Fixed(sigma_px),
         lm: LmConfig {
@@ -344,16 +329,30 @@ fn refine_fit(
             min_relative_decrease: 1e-8,
             ..LmConfig::default()
         },
+        covariance: true,
+    }
+}
+
+/// [`refine_relative_pose_fit`] under the IRLS settings `cfg`.
+fn refine_fit(
+    data: &Correspondences,
+    indices: &[usize],
+    focal: f64,
+    cfg: &IrlsConfig,
+    init: RelState,
+) -> Option<RelRefinement> {
+    let mut problem = SampsonProblem {
+        data,
+        indices,
+        focal,
     };
-    irls(&mut problem, init, &cfg)
-        .ok()
-        .map(|res| RelRefinement {
-            state: res.state,
-            hessian: res.hessian,
-            covariance: res.covariance,
-            iterations: res.iterations,
-            reason: res.reason,
-        })
+    irls(&mut problem, init, cfg).ok().map(|res| RelRefinement {
+        state: res.state,
+        hessian: res.hessian,
+        covariance: res.covariance,
+        iterations: res.iterations,
+        reason: res.reason,
+    })
 }
 
 /// Refines `(R, t)` on the correspondences `indices` with `loss` on the Sampson distance in
@@ -367,7 +366,11 @@ pub fn refine_relative_pose(
     loss: Loss,
     init: RelState,
 ) -> RelState {
-    refine_relative_pose_fit(data, indices, focal, sigma_px, loss, init).map_or(init, |r| r.state)
+    let cfg = IrlsConfig {
+        covariance: false,
+        ..sampson_irls(sigma_px, loss, REFINE_ITERATIONS)
+    };
+    refine_fit(data, indices, focal, &cfg, init).map_or(init, |r| r.state)
 }
 
 /// A few Huber IRLS steps (at most `max_iterations`) of [`refine_relative_pose`] on the Sampson
@@ -381,16 +384,11 @@ pub(crate) fn local_refinement(
     init: RelState,
     max_iterations: usize,
 ) -> RelState {
-    refine_fit(
-        data,
-        indices,
-        1.0,
-        sigma,
-        Loss::Huber(1.345),
-        init,
-        max_iterations,
-    )
-    .map_or(init, |r| r.state)
+    let cfg = IrlsConfig {
+        covariance: false,
+        ..sampson_irls(sigma, Loss::Huber(1.345), max_iterations)
+    };
+    refine_fit(data, indices, 1.0, &cfg, init).map_or(init, |r| r.state)
 }
 
 /// Settings of [`refine_maximum_likelihood`].
