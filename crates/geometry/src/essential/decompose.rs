@@ -56,6 +56,14 @@ pub struct PoseRecovery {
     pub median_parallax_deg: f64,
 }
 
+/// Whether the rays `a` (camera 1) and `b` (camera 2) meet in front of both cameras, closer
+/// than `far` to camera 1.
+fn in_front(camera: &SecondCamera, a: &Vector3<f64>, b: &Vector3<f64>, far: f64) -> bool {
+    camera
+        .ray_depths(a, b)
+        .is_some_and(|(l1, l2)| l1 > 0.0 && l2 > 0.0 && a.norm() * l1 < far)
+}
+
 /// Counts, for the pose `T_21`, the used correspondences in front of both cameras and
 /// closer than `far`.
 fn count_in_front(
@@ -69,11 +77,7 @@ fn count_in_front(
     x1.iter()
         .zip(x2)
         .zip(used)
-        .filter(|((a, b), &u)| {
-            u && camera
-                .ray_depths(a, b)
-                .is_some_and(|(l1, l2)| l1 > 0.0 && l2 > 0.0 && a.norm() * l1 < far)
-        })
+        .filter(|((a, b), &u)| u && in_front(&camera, a, b, far))
         .count()
 }
 
@@ -157,11 +161,7 @@ pub fn select_by_chirality(
         .zip(x2)
         .zip(used)
         .map(|((a, b), &u)| {
-            if !u {
-                return None;
-            }
-            let (l1, l2) = camera.ray_depths(a, b)?;
-            if !(l1 > 0.0 && l2 > 0.0 && (a * l1).norm() < cfg.far_distance) {
+            if !(u && in_front(&camera, a, b, cfg.far_distance)) {
                 return None;
             }
             let p = triangulate_corrected(&pose, a, b)?;

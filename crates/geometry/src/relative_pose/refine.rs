@@ -71,13 +71,13 @@ impl Problem<5> for SampsonProblem<'_> {
             let translation = y.cross(&x2) - (y.cross(&p) + rq.cross(&x2)) * c_over_d;
             let scale = self.focal / ep.d.sqrt();
             let j = SVector::<f64, 5>::new(
-                scale * rotation.x,
-                scale * rotation.y,
-                scale * rotation.z,
-                scale * b1.dot(&translation),
-                scale * b2.dot(&translation),
+                rotation.x,
+                rotation.y,
+                rotation.z,
+                b1.dot(&translation),
+                b2.dot(&translation),
             );
-            rows.push(j, scale * ep.c);
+            rows.push(j * scale, scale * ep.c);
         }
     }
 
@@ -309,7 +309,7 @@ pub fn refine_relative_pose_fit(
         data,
         indices,
         focal,
-        &sampson_irls(sigma_px, loss, REFINE_ITERATIONS),
+        &sampson_irls(sigma_px, loss, REFINE_ITERATIONS, true),
         init,
     )
 }
@@ -318,8 +318,8 @@ pub fn refine_relative_pose_fit(
 const REFINE_ITERATIONS: usize = 20;
 
 /// The IRLS settings of a Sampson refinement: `loss` on the residuals over `sigma_px`, at
-/// most `max_iterations` iterations, with the covariance.
-fn sampson_irls(sigma_px: f64, loss: Loss, max_iterations: usize) -> IrlsConfig {
+/// most `max_iterations` iterations, with the covariance when `covariance`.
+fn sampson_irls(sigma_px: f64, loss: Loss, max_iterations: usize, covariance: bool) -> IrlsConfig {
     IrlsConfig {
         loss,
         scale: ScaleMode::Fixed(sigma_px),
@@ -329,7 +329,7 @@ fn sampson_irls(sigma_px: f64, loss: Loss, max_iterations: usize) -> IrlsConfig 
             min_relative_decrease: 1e-8,
             ..LmConfig::default()
         },
-        covariance: true,
+        covariance,
     }
 }
 
@@ -366,10 +366,7 @@ pub fn refine_relative_pose(
     loss: Loss,
     init: RelState,
 ) -> RelState {
-    let cfg = IrlsConfig {
-        covariance: false,
-        ..sampson_irls(sigma_px, loss, REFINE_ITERATIONS)
-    };
+    let cfg = sampson_irls(sigma_px, loss, REFINE_ITERATIONS, false);
     refine_fit(data, indices, focal, &cfg, init).map_or(init, |r| r.state)
 }
 
@@ -384,10 +381,7 @@ pub(crate) fn local_refinement(
     init: RelState,
     max_iterations: usize,
 ) -> RelState {
-    let cfg = IrlsConfig {
-        covariance: false,
-        ..sampson_irls(sigma, Loss::Huber(1.345), max_iterations)
-    };
+    let cfg = sampson_irls(sigma, Loss::Huber(1.345), max_iterations, false);
     refine_fit(data, indices, 1.0, &cfg, init).map_or(init, |r| r.state)
 }
 
