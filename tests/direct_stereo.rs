@@ -8,6 +8,7 @@
 use std::path::PathBuf;
 
 use vofront::dataset::Dataset;
+use vofront::odometry::direct_stereo::{stereo_points, DirectStereoConfig};
 use vofront::odometry::graph::{parse_g2o, G2oSink};
 use vofront::odometry::registry::{Session, TrackerKind, TrackerOptions};
 use vofront::odometry::run::{FrameRecord, FrameSink, RunControl};
@@ -144,4 +145,45 @@ fn the_fixture_disparity_is_f_b_over_depth() {
     // there is the same (the rig only translates along x).
     let d = view.disparity.at(x, y).round() as usize;
     assert!((view.right.depth.at(x - d, y) - z).abs() < 0.01 * z);
+}
+
+#[test]
+fn stereo_points_carry_the_rendered_inverse_depth_and_keep_only_confident_matches() {
+    let sequence = StereoSequence::driving(3, 1);
+    let view = sequence.render(0);
+    let (left, right) = (view.left.image.clone(), view.right.image.clone());
+    let cfg = DirectStereoConfig::default();
+    let points = stereo_points(&left, &right, sequence.fb(), &cfg).expect("points");
+    assert!(points.len() > 1000, "{} points", points.len());
+    // Each kept point's inverse depth is the rendered one to its depth sigma (at most 10%, the
+    // default `max_relative_depth_sigma`), bar the few matches at an occluding edge.
+    let mut errors: Vec<f64> = points
+        .iter()
+        .map(|p| {
+            let z = f64::from(view.left.depth.at(p.pixel.x as usize, p.pixel.y as usize));
+            (f64::from(p.inverse_depth) * z - 1.0).abs()
+        })
+        .collect();
+    errors.sort_by(f64::total_cmp);
+    let median = errors[errors.len() / 2];
+    let p90 = errors[errors.len() * 9 / 10];
+    assert!(
+        median < 0.01 && p90 < 0.1,
+        "relative error median {median:.4}, p90 {p90:.4}"
+    );
+    // A stricter depth-sigma bound keeps fewer of them.
+    let strict = DirectStereoConfig {
+        max_relative_depth_sigma: 0.01,
+        ..DirectStereoConfig::default()
+    };
+    let fewer = stereo_points(&left, &right, sequence.fb(), &strict).expect("points");
+    assert!(
+        fewer.len() < points.len(),
+        "{} of {}",
+        fewer.len(),
+        points.len()
+    );
+    // Images of different sizes are a typed error, not a panic.
+    let half = vofront::image::Image::<f32>::filled(left.width() / 2, left.height(), 0.0);
+    assert!(stereo_points(&left, &half, sequence.fb(), &cfg).is_err());
 }

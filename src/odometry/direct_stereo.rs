@@ -199,22 +199,10 @@ impl DirectStereoTracker {
         let right = self.rectify(right, 1)?;
         let r = self.rectified(left.size())?;
         let (pinhole, fb) = (r.camera.pinhole, r.fb);
-        let cfg = &self.cfg.disparity;
-        let pixels = select_pixels(left, cfg);
-        let found = match_pixels(left, &right, &pixels, cfg)
-            .map_err(|e| frame_error(StereoFrameError::Image(e)))?;
-        let mut depths = Vec::with_capacity(found.len());
-        let points: Vec<InverseDepthPoint> = found
+        let points = stereo_points(left, &right, fb, &self.cfg)?;
+        let mut depths: Vec<f64> = points
             .iter()
-            .flatten()
-            .filter(|m| f64::from(m.sigma / m.disparity) <= self.cfg.max_relative_depth_sigma)
-            .map(|m| {
-                depths.push(m.depth(fb));
-                InverseDepthPoint {
-                    pixel: Vector2::new(m.x as f32, m.y as f32),
-                    inverse_depth: (1.0 / m.depth(fb)) as f32,
-                }
-            })
+            .map(|p| 1.0 / f64::from(p.inverse_depth))
             .collect();
         let reference =
             Se3Reference::from_inverse_depths(left, pinhole, None, &points, &self.cfg.se3)?;
@@ -311,6 +299,34 @@ impl DirectStereoTracker {
         }
         .judged(pose_quality)
     }
+}
+
+/// The pixels of a keyframe of a rectified stereo pair (step 2 of the module documentation):
+/// the high-gradient pixels of `left` matched along their rows in `right`, each kept when
+/// `sigma_d / d <= cfg.max_relative_depth_sigma`, with the inverse depth `d / (f b)`, 1/metres
+/// (`fb`: the focal length in pixels times the baseline in metres). They make the keyframe's
+/// reference with [`Se3Reference::from_inverse_depths`] and `cfg.se3`.
+///
+/// Errors: [`VoError::StereoFrame`] when the two images differ in size or the disparity
+/// settings are invalid.
+pub fn stereo_points(
+    left: &Image<f32>,
+    right: &Image<f32>,
+    fb: f64,
+    cfg: &DirectStereoConfig,
+) -> Result<Vec<InverseDepthPoint>, VoError> {
+    let pixels = select_pixels(left, &cfg.disparity);
+    let found = match_pixels(left, right, &pixels, &cfg.disparity)
+        .map_err(|e| frame_error(StereoFrameError::Image(e)))?;
+    Ok(found
+        .iter()
+        .flatten()
+        .filter(|m| f64::from(m.sigma / m.disparity) <= cfg.max_relative_depth_sigma)
+        .map(|m| InverseDepthPoint {
+            pixel: Vector2::new(m.x as f32, m.y as f32),
+            inverse_depth: (1.0 / m.depth(fb)) as f32,
+        })
+        .collect())
 }
 
 /// A stereo frame error as the trackers' [`VoError`].
