@@ -52,11 +52,13 @@ fn normalised(d: Vector3<f64>, b: Matrix3<f64>) -> Option<(f64, f64)> {
 struct Check {
     rotation: Vec<(f64, f64)>,
     translation: Vec<(f64, f64)>,
+    /// Frames whose rotation or translation lies beyond 5 sigma.
+    beyond: Vec<usize>,
 }
 
 impl Check {
-    /// Adds the discrepancy `d = (rho, phi)` of covariance `cov`.
-    fn add(&mut self, d: &Vector6<f64>, cov: &Matrix6<f64>) {
+    /// Adds the discrepancy `d = (rho, phi)` of covariance `cov` found at frame `frame`.
+    fn add(&mut self, frame: usize, d: &Vector6<f64>, cov: &Matrix6<f64>) {
         let block = |s: usize| -> (Vector3<f64>, Matrix3<f64>) {
             (
                 d.fixed_rows::<3>(s).into_owned(),
@@ -65,8 +67,12 @@ impl Check {
         };
         let (t, bt) = block(0);
         let (r, br) = block(3);
-        self.translation.extend(normalised(t, bt));
-        self.rotation.extend(normalised(r, br));
+        let (t, r) = (normalised(t, bt), normalised(r, br));
+        if t.iter().chain(&r).any(|s| s.1 > 5.0) {
+            self.beyond.push(frame);
+        }
+        self.translation.extend(t);
+        self.rotation.extend(r);
     }
 
     fn print(&self, name: &str) {
@@ -87,6 +93,9 @@ impl Check {
                 median(&mut ratio),
                 100.0 * beyond
             );
+        }
+        if !self.beyond.is_empty() {
+            println!("  {name:<12} frames beyond 5 sigma: {:?}", self.beyond);
         }
     }
 }
@@ -164,9 +173,10 @@ fn run(path: &Path) -> Result<(), String> {
             continue;
         };
         motion = f10.pose;
-        halves.add(&se3_log(&(fa.pose * fb.pose.inverse())), &(ca + cb));
+        halves.add(i, &se3_log(&(fa.pose * fb.pose.inverse())), &(ca + cb));
         let ad = adjoint(&f21.pose);
         loops.add(
+            i,
             &se3_log(&(f20.pose * (f21.pose * f10.pose).inverse())),
             &(c20 + c21 + ad * c10 * ad.transpose()),
         );
