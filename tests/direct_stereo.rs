@@ -186,4 +186,7 @@ fn stereo_points_carry_the_rendered_inverse_depth_and_keep_only_confident_matche
     // Images of different sizes are a typed error, not a panic.
     let half = vofront::image::Image::<f32>::filled(left.width() / 2, left.height(), 0.0);
     assert!(stereo_points(&left, &half, sequence.fb(), &cfg).is_err());
+    for fb in [0.0, -1.0, f64::NAN] {
+        assert!(stereo_points(&left, &right, fb, &cfg).is_err(), "fb {fb}");
+    }
 }

@@ -307,14 +307,19 @@ impl DirectStereoTracker {
 /// (`fb`: the focal length in pixels times the baseline in metres). They make the keyframe's
 /// reference with [`Se3Reference::from_inverse_depths`] and `cfg.se3`.
 ///
-/// Errors: [`VoError::StereoFrame`] when the two images differ in size or the disparity
-/// settings are invalid.
+/// Errors: [`VoError::StereoFrame`] when the two images differ in size, the disparity
+/// settings are invalid or `fb` is not a positive number.
 pub fn stereo_points(
     left: &Image<f32>,
     right: &Image<f32>,
     fb: f64,
     cfg: &DirectStereoConfig,
 ) -> Result<Vec<InverseDepthPoint>, VoError> {
+    if !(fb.is_finite() && fb > 0.0) {
+        return Err(VoError::StereoFrame(format!(
+            "focal length times baseline must be positive, got {fb}"
+        )));
+    }
     let pixels = select_pixels(left, &cfg.disparity);
     let found = match_pixels(left, right, &pixels, &cfg.disparity)
         .map_err(|e| frame_error(StereoFrameError::Image(e)))?;
