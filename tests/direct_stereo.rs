@@ -190,3 +190,61 @@ fn stereo_points_carry_the_rendered_inverse_depth_and_keep_only_confident_matche
         assert!(stereo_points(&left, &right, fb, &cfg).is_err(), "fb {fb}");
     }
 }
+
+#[test]
+fn a_first_frame_whose_pixel_halves_see_two_motions_is_not_ok() {
+    use nalgebra::Isometry3;
+    use vofront::dataset::Frame;
+    use vofront::direct::HALF_CELL_PX;
+    use vofront::fixtures::image2d::to_gray8;
+    use vofront::fixtures::scene::panels_moving_with_camera;
+    use vofront::odometry::direct_stereo::DirectStereoTracker;
+    use vofront::odometry::Tracker;
+    use vofront_core::rig::Rig;
+
+    let room = StereoSequence::room(2, 7);
+    let (w, h) = room.size;
+    let right_in_left = room.right_in_left();
+    // The first tracked frame's status and message, with or without panels that move with the
+    // left camera in the even cells of the halves' checkerboard.
+    let first_tracked = |panels: bool| {
+        let rig = Rig::stereo(
+            room.camera,
+            Isometry3::identity(),
+            room.camera,
+            right_in_left,
+        )
+        .expect("rig");
+        let mut tracker =
+            DirectStereoTracker::new(rig, DirectStereoConfig::default()).expect("tracker");
+        let mut last = None;
+        for i in [0, 3] {
+            let t_wc = room.poses_wc[i];
+            let mut scene = room.scene.clone();
+            if panels {
+                let cell = f64::from(HALF_CELL_PX);
+                scene.quads.extend(panels_moving_with_camera(
+                    &room.camera,
+                    (w, h),
+                    &t_wc,
+                    cell,
+                    1.0,
+                    7,
+                ));
+            }
+            let left = scene.render(&room.camera, w, h, &t_wc);
+            let right = scene.render(&room.camera, w, h, &(t_wc * right_in_left));
+            let frame = Frame::new(i as f64 / room.frame_rate, to_gray8(&left.image), None)
+                .expect("frame")
+                .with_right(to_gray8(&right.image))
+                .expect("right image");
+            last = Some(tracker.track(&frame));
+        }
+        let last = last.expect("two frames");
+        (last.status, last.message.unwrap_or_default())
+    };
+    assert_eq!(first_tracked(false).0, TrackStatus::Ok);
+    let (status, message) = first_tracked(true);
+    assert_eq!(status, TrackStatus::Unreliable, "{message}");
+    assert!(message.contains("inconsistent"), "{message}");
+}

@@ -11,8 +11,10 @@
 //!    `sigma_Z = Z^2 sigma_d / (f b)`, and is kept when `sigma_Z / Z` is at most
 //!    [`DirectStereoConfig::max_relative_depth_sigma`]. These pixels with their inverse depths
 //!    are the keyframe's [`Se3Reference`] ([`Se3Reference::from_inverse_depths`]).
-//! 3. Each frame starts from the constant-velocity guess `T_wc'`, `T_cur_kf = T_wc'^-1 T_w_kf`,
-//!    and minimises `I_cur(pi(K T_cur_kf pi^-1(p, Z_p))) - (a I_kf(p) + b)` (affine
+//! 3. Each frame starts from the constant-velocity guess `T_wc'`, `T_cur_kf = T_wc'^-1 T_w_kf`
+//!    (without a velocity, the first frame and the first after a loss, from the last pose, and
+//!    its fit is then also checked by two halves of the pixels: more than 10 combined sigmas
+//!    apart flags it `inconsistent`, see `Se3Reference::halves_disagreement`), and minimises `I_cur(pi(K T_cur_kf pi^-1(p, Z_p))) - (a I_kf(p) + b)` (affine
 //!    brightness, coarse to fine, robust); its pose is `T_wc = T_w_kf T_cur_kf^-1`. A failed
 //!    alignment, a `failed` verdict or too few inliers loses the frame, which then starts a
 //!    new keyframe at the prediction: metric like the first, so the scale never breaks.
@@ -39,6 +41,7 @@ use super::stereo::StereoFrameError;
 use super::{ms_since, FrameEstimate, FrameQuality, KeyframeSlot, TrackStatus, Tracker};
 use crate::dataset::Frame;
 use crate::error::VoError;
+use crate::two_view::stereo::flag_if_inconsistent;
 
 /// Why a direct stereo tracker could not be built.
 #[derive(Debug, Error)]
@@ -233,12 +236,19 @@ impl DirectStereoTracker {
             quality: self.cfg.quality,
             ..self.cfg.se3
         };
+        // Without a velocity the prior is the last pose, possibly far from the motion: the
+        // fit is also checked by its two halves (`Se3Reference::halves_disagreement`).
+        let check_halves = !self.slot.motion.has_velocity();
         let fit = kf
             .reference
             .align(&current, &(predicted.inverse() * kf.t_wc), &se3)
             .map_err(VoError::from)
             .and_then(|r| {
-                let q = r.quality.clone();
+                let mut q = r.quality.clone();
+                if check_halves {
+                    let sigmas = kf.reference.halves_disagreement(&current, &r.pose, &se3);
+                    flag_if_inconsistent(&mut q, sigmas);
+                }
                 if q.verdict == Verdict::Failed {
                     Err(VoError::Rejected {
                         what: "SE(3)",

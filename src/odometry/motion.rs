@@ -36,6 +36,12 @@ impl ConstantVelocity {
         }
     }
 
+    /// Whether a velocity is known: [`ConstantVelocity::predict`] extrapolates a motion rather
+    /// than repeating the last pose.
+    pub fn has_velocity(&self) -> bool {
+        self.velocity.is_some()
+    }
+
     /// Forgets the velocity (after tracking was lost), keeping the last pose.
     pub fn reset_velocity(&mut self) {
         self.velocity = None;

@@ -55,7 +55,7 @@ pub use plane::{Gradients, Pyramid};
 pub use rgbd::{RgbdFrame, Undistorter};
 pub use se3::{
     align_se3, photometric_residual_map, CalibrationPrior, InverseDepthPoint, PixelResidual,
-    Se3Config, Se3Reference, Se3Result,
+    Se3Config, Se3Reference, Se3Result, HALF_CELL_PX,
 };
 pub use translation::{align_translation, TranslationConfig, TranslationResult};
 #[allow(deprecated)]

@@ -16,6 +16,8 @@
 //! prior pose, with `(a, b)` estimated only at the `brightness_levels` finest levels. Module
 //! `level` holds the residuals and Jacobian rows of one level; the result's covariance is the
 //! robust crate's sandwich covariance plus the calibration's share (module `calibration`).
+//! [`Se3Reference::halves_disagreement`] checks that two halves of the pixels agree on the
+//! motion (module `halves`).
 
 use std::sync::Arc;
 
@@ -31,6 +33,7 @@ use crate::quality::{intensity_variance, se3_quality, Se3Stats};
 use crate::rgbd::{pinhole_image, RgbdFrame, Undistorter};
 
 mod calibration;
+mod halves;
 mod level;
 mod residuals;
 mod select;
@@ -38,6 +41,7 @@ mod sparse;
 
 use calibration::calibration_covariance;
 pub use calibration::CalibrationPrior;
+pub use halves::HALF_CELL_PX;
 use level::{Se3Level, Se3State};
 pub use residuals::PixelResidual;
 use select::{level_intrinsics, select_level, RefLevel};

@@ -42,6 +42,22 @@ impl RefLevel {
         self.z.push(z);
         self.value.push(value);
     }
+
+    /// The level's pixels whose pixel `(u, v)` of this level satisfies `keep`.
+    pub(super) fn filtered(&self, keep: impl Fn(f32, f32) -> bool) -> Self {
+        let [fx, fy, cx, cy] = self.k;
+        let mut out = Self::with_intrinsics(self.k);
+        for i in 0..self.x.len() {
+            let (x, y, z) = (self.x[i], self.y[i], self.z[i]);
+            if keep(fx * x / z + cx, fy * y / z + cy) {
+                out.x.push(x);
+                out.y.push(y);
+                out.z.push(z);
+                out.value.push(self.value[i]);
+            }
+        }
+        out
+    }
 }
 
 /// Intrinsics `(fx, fy, cx, cy) / 2^level` of pyramid level `level` (level-`l` pixel `x` sits at
