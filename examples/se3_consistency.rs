@@ -7,8 +7,9 @@
 //! `image_1`), with the keyframes of `direct-stereo` (`vofront::odometry::direct_stereo`:
 //! [`stereo_points`], the tracker's [`DirectStereoConfig`]):
 //!
-//! 1. **Split halves.** The reference points of frame `i` are split into the two colours of a
-//!    checkerboard of [`CELL_PX`] pixel cells; frame `i + 1` is aligned to each half. The two
+//! 1. **Split halves.** The reference of frame `i` is split into the two colours of a
+//!    checkerboard of 64-pixel cells ([`Se3Reference::halves`], the check `direct-stereo`
+//!    makes on a frame without a velocity); frame `i + 1` is aligned to each half. The two
 //!    estimates see disjoint pixels, so their difference `d = log(T_A T_B^-1)` has the
 //!    covariance `Sigma_A + Sigma_B` when the pixels' errors are independent beyond a cell.
 //! 2. **Triangle loops.** `T_10` and `T_20` (frames `i + 1`, `i + 2` aligned to keyframe `i`)
@@ -37,9 +38,6 @@ use vofront::dataset::Dataset;
 use vofront::direct::{CalibrationPrior, InverseDepthPoint, Se3Reference, Se3Result};
 use vofront::image::Image;
 use vofront::odometry::direct_stereo::{stereo_points, DirectStereoConfig};
-
-/// Side of the checkerboard cells of the split-halves check, pixels.
-const CELL_PX: f32 = 64.0;
 
 /// NEES per degree of freedom and error/sigma of the 3-vector `d` under the 3x3 block `b`.
 fn normalised(d: Vector3<f64>, b: Matrix3<f64>) -> Option<(f64, f64)> {
@@ -142,30 +140,18 @@ fn run(path: &Path) -> Result<(), String> {
     let (mut halves, mut loops, mut failed) = (Check::default(), Check::default(), 0usize);
     let mut motion = Isometry3::identity();
     for i in 0..data.len().saturating_sub(2) {
-        let frames: Option<Vec<_>> = (i..i + 3).map(|k| stereo_images(&data, k)).collect();
-        let Some(frames) = frames else {
-            failed += 1;
-            continue;
-        };
-        let [(l0, r0), (l1, r1), (l2, _)] = &frames[..] else {
-            unreachable!("three frames were loaded")
-        };
-        let points = |l: &Image<f32>, r: &Image<f32>| stereo_points(l, r, fb, &cfg).ok();
-        let (Some(p0), Some(p1)) = (points(l0, r0), points(l1, r1)) else {
-            failed += 1;
-            continue;
-        };
-        let colour = |p: &InverseDepthPoint| {
-            ((p.pixel.x / CELL_PX) as i64 + (p.pixel.y / CELL_PX) as i64) % 2 == 0
-        };
-        let (a, b): (Vec<_>, Vec<_>) = p0.iter().partition(|p| colour(p));
+        let images = |k: usize| stereo_images(&data, k);
+        let points = |(l, r): &(Image<f32>, Image<f32>)| stereo_points(l, r, fb, &cfg).ok();
         let fits = (|| {
-            let k0 = reference(&p0, l0)?;
+            let (first, second, (l2, _)) = (images(i)?, images(i + 1)?, images(i + 2)?);
+            let (l0, l1) = (&first.0, &second.0);
+            let k0 = reference(&points(&first)?, l0)?;
             let (f10, c10) = align(&k0, l1, &motion, &cfg)?;
-            let (f20, c20) = align(&k0, l2, &(f10.pose * f10.pose), &cfg)?;
-            let (f21, c21) = align(&reference(&p1, l1)?, l2, &f10.pose, &cfg)?;
-            let (fa, ca) = align(&reference(&a, l0)?, l1, &f10.pose, &cfg)?;
-            let (fb, cb) = align(&reference(&b, l0)?, l1, &f10.pose, &cfg)?;
+            let (f20, c20) = align(&k0, &l2, &(f10.pose * f10.pose), &cfg)?;
+            let (f21, c21) = align(&reference(&points(&second)?, l1)?, &l2, &f10.pose, &cfg)?;
+            let [a, b] = k0.halves();
+            let (fa, ca) = align(&a, l1, &f10.pose, &cfg)?;
+            let (fb, cb) = align(&b, l1, &f10.pose, &cfg)?;
             Some([(f10, c10), (f20, c20), (f21, c21), (fa, ca), (fb, cb)])
         })();
         let Some([(f10, c10), (f20, c20), (f21, c21), (fa, ca), (fb, cb)]) = fits else {

@@ -30,20 +30,28 @@ use super::{CalibrationPrior, Se3Config, Se3Reference};
 pub const HALF_CELL_PX: f32 = 64.0;
 
 impl Se3Reference {
-    /// The reference restricted to one colour (`even`: `floor(u / c) + floor(v / c)` even) of
-    /// the checkerboard of [`HALF_CELL_PX`]-pixel cells, at every level (a level-`l` pixel
-    /// `u` is the full-resolution `2^l u`).
+    /// The reference split into the two colours of the checkerboard of [`HALF_CELL_PX`]-pixel
+    /// cells, `[even, odd]` (`col + row` even or odd for the cell `(col, row)` of the
+    /// full-resolution pixel), at every level: two references over disjoint pixels that each span the
+    /// image.
+    pub fn halves(&self) -> [Self; 2] {
+        [self.half(true), self.half(false)]
+    }
+
+    /// One colour of [`Se3Reference::halves`] (a level-`l` pixel `u` is the full-resolution
+    /// `2^l u`).
     fn half(&self, even: bool) -> Self {
         let levels: Vec<RefLevel> = self
             .levels
             .iter()
             .enumerate()
             .map(|(l, level)| {
-                let cell = HALF_CELL_PX / (1u32 << l) as f32;
-                level.filtered(|u, v| {
-                    let colour = (u / cell).floor() as i64 + (v / cell).floor() as i64;
-                    (colour.rem_euclid(2) == 0) == even
-                })
+                let scale = (1u32 << l) as f32;
+                // Pixel centres are integers: a cell holds the pixels whose centre lies in
+                // `[c k - 1/2, c (k + 1) - 1/2)`, which the pixel's recomputed position keeps
+                // however it rounds.
+                let cell_of = |x: f32| ((x * scale + 0.5) / HALF_CELL_PX).floor() as i64;
+                level.filtered(|u, v| ((cell_of(u) + cell_of(v)).rem_euclid(2) == 0) == even)
             })
             .collect();
         Self {
@@ -69,12 +77,13 @@ impl Se3Reference {
             calibration: CalibrationPrior::exact(),
             ..*cfg
         };
-        let half = |even: bool| {
-            let result = self.half(even).align(current, fit, &cfg).ok()?;
+        let [a, b] = self.halves();
+        let aligned = |half: Self| {
+            let result = half.align(current, fit, &cfg).ok()?;
             Some((result.pose, result.covariance?))
         };
-        let (pose_a, cov_a) = half(true)?;
-        let (pose_b, cov_b) = half(false)?;
+        let (pose_a, cov_a) = aligned(a)?;
+        let (pose_b, cov_b) = aligned(b)?;
         let d = se3_log(&(pose_a * pose_b.inverse()));
         let t = d.dot(&((cov_a + cov_b).cholesky()?.solve(&d)));
         t.is_finite().then(|| t.max(0.0).sqrt())
