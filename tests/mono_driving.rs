@@ -13,7 +13,7 @@
 //! -> 0.092 m over 12 seeds); the third fixed keyframe lowered it to 0.40% (worst seed 1.25% ->
 //! 0.70%). After a segment break the new map keeps the speed of the old one.
 
-use vofront::dataset::Frame;
+use vofront::dataset::{Dataset, Frame};
 use vofront::eval::{ate, rpe, Alignment, EvalConfig};
 use vofront::fixtures::driving::{DrivingSequence, FRAME_RATE};
 use vofront::fixtures::image2d::to_gray8;
@@ -208,6 +208,49 @@ fn the_start_of_a_turn_is_located_as_precisely_as_the_straight() {
                 "seed {seed}, frame {i}: rotation off by {error:.2} deg ({:.2} of {:.2})",
                 est.angle().to_degrees(),
                 truth.angle().to_degrees()
+            );
+        }
+    }
+}
+
+/// Issue 34: at a third of the frame rate, a frame of the real `kitti_06` clip (3.6 m between
+/// frames past near facades and trees) loses half of the keyframe's points, and the next then
+/// found too few to be located: over RANSAC seeds 0-11, seven lost four frames and restarted
+/// with a segment break. The tracker now takes a keyframe when the next frame is forecast to
+/// track fewer points than a keyframe needs (`keyframe::forecast_tracked`): every frame is
+/// posed, none restarted. Skipped when the shared data are absent.
+#[test]
+fn every_third_frame_of_kitti_06_is_tracked_without_a_restart() {
+    let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../shared/data/kitti_06");
+    if !dir.exists() {
+        eprintln!("skipped: {} not found", dir.display());
+        return;
+    }
+    let dataset = Dataset::open(&dir).expect("kitti_06");
+    let camera = dataset.camera.expect("calibration");
+    let frames: Vec<Frame> = (0..dataset.len())
+        .step_by(3)
+        .map(|i| dataset.load(i).expect("frame"))
+        .collect();
+    for seed in 0..12 {
+        let mut cfg = MonoConfig::default();
+        cfg.relative.ransac.seed = seed;
+        cfg.pnp.ransac.seed = seed;
+        let mut tracker = MonoTracker::new(camera, cfg).expect("tracker");
+        let mut estimates = Vec::new();
+        for (k, frame) in frames.iter().enumerate() {
+            estimates.push(tracker.track(frame));
+            for (back, e) in tracker.revised() {
+                estimates[k - back] = e;
+            }
+        }
+        for (k, e) in estimates.iter().enumerate() {
+            assert_eq!(
+                e.status,
+                TrackStatus::Ok,
+                "seed {seed}, frame {}: {:?}",
+                3 * k,
+                e.message
             );
         }
     }

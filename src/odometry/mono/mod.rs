@@ -21,8 +21,11 @@
 //! 3. Keyframes are decided without metric units: a new one is taken when the median parallax
 //!    of the tracked points between the last keyframe's and the current camera centres,
 //!    `angle(P - C_kf, P - C_cur)`, reaches `keyframe_parallax_deg`, when the tracked ratio
-//!    (inliers over the last keyframe's points) falls under the policy's `min_overlap`, or on
-//!    the policy's rotation and residual tests, and only from a pose with at least
+//!    (inliers over the last keyframe's points) falls under the policy's `min_overlap`, when
+//!    the next frame is forecast to track fewer than `min_keyframe_inliers` of those points
+//!    at the ratio's mean fall since the keyframe (`keyframe::forecast_tracked`: a fast camera
+//!    at a low frame rate loses half of them in one frame), or on the policy's rotation and
+//!    residual tests, and only from a pose with at least
 //!    `min_keyframe_inliers` inliers or a clean consensus (`keyframe_clean_ratio`): a weakly
 //!    supported pose may be wrong, and points built on it would make later frames agree
 //!    with the error. A keyframe adds observations, triangulates new points against its
@@ -55,7 +58,7 @@ use vofront_core::Camera;
 use vofront_features::{Features, Orb};
 
 use super::coast::Coasting;
-use super::keyframe::KeyframeView;
+use super::keyframe::{forecast_tracked, KeyframeView};
 use super::late::{LateEstimates, Waiting};
 use super::local_map::{LocalMap, MapRules, WIDE_WINDOW_FACTOR};
 use super::lost::LostMap;
@@ -227,6 +230,7 @@ impl MonoTracker {
             return FrameEstimate::lost(predicted, "empty map".into(), start);
         };
         let last_points = last.point_of.iter().flatten().count();
+        let last_frame = last.frame;
         let t_kf_w = last.t_wc.inverse();
         let mut depths: Vec<f64> = tracked.iter().map(|(_, _, p)| (t_kf_w * p).z).collect();
         let first_residual = first_residual.unwrap_or(fit.rmse_px);
@@ -247,8 +251,14 @@ impl MonoTracker {
         let pnp_quality = FrameQuality::of_pnp(&fit, matches.len());
         let supported = pnp_quality.inliers >= self.cfg.min_keyframe_inliers
             || pnp_quality.inlier_ratio >= self.cfg.keyframe_clean_ratio;
+        // The tracked share falling so fast that the next frame would be left with fewer points
+        // than a keyframe needs: a keyframe now, while the map can still be extended.
+        let since = self.late.frame().saturating_sub(last_frame);
+        let collapsing = forecast_tracked(last_points, view.overlap, since)
+            < self.cfg.min_keyframe_inliers as f64;
         let keyframe = supported
-            && (parallax >= self.cfg.keyframe_parallax_deg
+            && (collapsing
+                || parallax >= self.cfg.keyframe_parallax_deg
                 || self.cfg.keyframe.needs_keyframe(&view));
         let quality = FrameQuality {
             keyframe,
