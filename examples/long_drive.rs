@@ -10,15 +10,19 @@
 //! frame that is lost or restarts tracking, then one JSON line: frames, posed, lost,
 //! reinitialised, segment breaks, ATE (metres and percent of the path), resident memory
 //! (`VmRSS` of `/proc/self/status`, MiB) at frame 300 and its maximum over the run, the peak
-//! (`VmHWM`), the local map's points at frame 300 and their maximum, and the tracker's mean
+//! (`VmHWM`) at the end, at frame 300 and at the last frame (`hwm_mib_run`, before the
+//! evaluation) and the ratio of the last two (an instant's `VmRSS` dips when the allocator
+//! returns memory, the peak does not), the local map's points at frame 300 and their maximum, and the tracker's mean
 //! time per frame over frames 100-400 and over the last 300 frames (rendering excluded).
 
 use std::time::Instant;
 
+use nalgebra::Isometry3;
+
 use vofront::dataset::Frame;
 use vofront::eval::{ate, Alignment, EvalConfig};
 use vofront::odometry::mono::{MonoConfig, MonoTracker};
-use vofront::odometry::{FrameEstimate, TrackStatus, Tracker};
+use vofront::odometry::{TrackStatus, Tracker};
 use vofront::trajectory::Trajectory;
 use vofront_fixtures::image2d::to_gray8;
 use vofront_fixtures::long_drive::{LongDrive, LONG_DRIVE_SIZE};
@@ -61,10 +65,15 @@ fn main() -> Result<(), String> {
         MonoTracker::new(drive.camera, MonoConfig::default()).map_err(|e| e.to_string())?;
     // The local map's points are read from the tracker's details.
     tracker.keep_details(true);
-    let mut estimates: Vec<FrameEstimate> = Vec::with_capacity(frames);
-    let mut track_ms = Vec::with_capacity(frames);
-    let mut map_points = Vec::with_capacity(frames);
+    // Each frame's status and pose, time and map size, allocated and written in full before the
+    // run, so that the process grows only by the tracker's memory: a whole estimate with its
+    // quality record is 392 bytes, and a growing record of 3000 of them added more than a
+    // megabyte to the readings.
+    let mut posed = vec![(TrackStatus::Lost, Isometry3::identity()); frames];
+    let mut track_ms = vec![0.0; frames];
+    let mut map_points = vec![0; frames];
     let (mut rss_max, mut rss_300, mut points_300) = (0.0_f64, f64::NAN, 0);
+    let (mut hwm_300, mut hwm_run) = (f64::NAN, f64::NAN);
     let (mut render_s, mut breaks) = (0.0, 0);
     for i in 0..frames {
         let render_start = Instant::now();
@@ -73,30 +82,31 @@ fn main() -> Result<(), String> {
         let frame = Frame::new(LongDrive::timestamp(i), image, None).map_err(|e| e.to_string())?;
         let start = Instant::now();
         let estimate = tracker.track(&frame);
-        track_ms.push(1e3 * start.elapsed().as_secs_f64());
-        estimates.push(estimate);
+        track_ms[i] = 1e3 * start.elapsed().as_secs_f64();
+        posed[i] = (estimate.status, estimate.pose_wc);
         for (back, e) in tracker.revised() {
-            estimates[i - back] = e;
+            posed[i - back] = (e.status, e.pose_wc);
         }
-        let e = &estimates[i];
-        if e.status == TrackStatus::Lost || e.status == TrackStatus::Reinitialised {
-            let message = e.message.as_deref().unwrap_or("");
+        let status = estimate.status;
+        if status == TrackStatus::Lost || status == TrackStatus::Reinitialised {
+            let message = estimate.message.as_deref().unwrap_or("");
             breaks += usize::from(message.contains("segment break"));
-            println!("frame {i}: {:?}: {message}", e.status);
+            println!("frame {i}: {status:?}: {message}");
         }
-        map_points.push(tracker.details().map_or(0, |d| d.map_points.len()));
-        if let Some((rss, _)) = memory_mib() {
+        map_points[i] = tracker.details().map_or(0, |d| d.map_points.len());
+        if let Some((rss, hwm)) = memory_mib() {
             rss_max = rss_max.max(rss);
+            hwm_run = hwm;
             if i == 300.min(frames - 1) {
-                (rss_300, points_300) = (rss, map_points[i]);
+                (rss_300, hwm_300, points_300) = (rss, hwm, map_points[i]);
             }
         }
     }
     let (mut truth, mut trajectory) = (Trajectory::default(), Trajectory::default());
-    for (i, e) in estimates.iter().enumerate() {
+    for (i, (status, pose_wc)) in posed.iter().enumerate() {
         truth.push(LongDrive::timestamp(i), drive.poses_wc[i]);
-        if e.status != TrackStatus::Lost {
-            trajectory.push(LongDrive::timestamp(i), e.pose_wc);
+        if *status != TrackStatus::Lost {
+            trajectory.push(LongDrive::timestamp(i), *pose_wc);
         }
     }
     let cfg = EvalConfig {
@@ -111,9 +121,9 @@ fn main() -> Result<(), String> {
         }
     };
     let path = drive.path_length();
-    let count = |s: TrackStatus| estimates.iter().filter(|e| e.status == s).count();
+    let count = |s: TrackStatus| posed.iter().filter(|(status, _)| *status == s).count();
     println!(
-        "{{\"frames\": {frames}, \"size\": \"{}x{}\", \"posed\": {}, \"lost\": {}, \"reinitialised\": {}, \"segment_breaks\": {breaks}, \"path_m\": {path:.1}, \"ate_m\": {ate_m:.3}, \"ate_percent\": {:.3}, \"rss_mib_300\": {rss_300:.1}, \"rss_mib_max\": {rss_max:.1}, \"rss_ratio\": {:.3}, \"hwm_mib\": {:.1}, \"map_points_300\": {points_300}, \"map_points_max\": {}, \"ms_100_400\": {:.2}, \"ms_last_300\": {:.2}, \"render_s\": {render_s:.1}}}",
+        "{{\"frames\": {frames}, \"size\": \"{}x{}\", \"posed\": {}, \"lost\": {}, \"reinitialised\": {}, \"segment_breaks\": {breaks}, \"path_m\": {path:.1}, \"ate_m\": {ate_m:.3}, \"ate_percent\": {:.3}, \"rss_mib_300\": {rss_300:.1}, \"rss_mib_max\": {rss_max:.1}, \"rss_ratio\": {:.3}, \"hwm_mib\": {:.1}, \"hwm_mib_300\": {hwm_300:.1}, \"hwm_mib_run\": {hwm_run:.1}, \"hwm_ratio\": {:.3}, \"map_points_300\": {points_300}, \"map_points_max\": {}, \"ms_100_400\": {:.2}, \"ms_last_300\": {:.2}, \"render_s\": {render_s:.1}}}",
         size.0,
         size.1,
         trajectory.len(),
@@ -122,6 +132,7 @@ fn main() -> Result<(), String> {
         100.0 * ate_m / path.max(1e-9),
         rss_max / rss_300,
         memory_mib().map_or(f64::NAN, |m| m.1),
+        hwm_run / hwm_300,
         map_points.iter().max().unwrap_or(&0),
         mean(&track_ms, 100..400),
         mean(&track_ms, frames.saturating_sub(300)..frames),
