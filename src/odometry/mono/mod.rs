@@ -230,7 +230,6 @@ impl MonoTracker {
             return FrameEstimate::lost(predicted, "empty map".into(), start);
         };
         let last_points = last.point_of.iter().flatten().count();
-        let last_frame = last.frame;
         let t_kf_w = last.t_wc.inverse();
         let mut depths: Vec<f64> = tracked.iter().map(|(_, _, p)| (t_kf_w * p).z).collect();
         let first_residual = first_residual.unwrap_or(fit.rmse_px);
@@ -253,7 +252,7 @@ impl MonoTracker {
             || pnp_quality.inlier_ratio >= self.cfg.keyframe_clean_ratio;
         // The tracked share falling so fast that the next frame would be left with fewer points
         // than a keyframe needs: a keyframe now, while the map can still be extended.
-        let since = self.late.frame().saturating_sub(last_frame);
+        let since = self.late.frame().saturating_sub(last.frame);
         let collapsing = forecast_tracked(last_points, view.overlap, since)
             < self.cfg.min_keyframe_inliers as f64;
         let keyframe = supported
