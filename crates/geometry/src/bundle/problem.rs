@@ -89,6 +89,12 @@ impl LmProblem for Reprojection<'_> {
                 point: Matrix3::zeros(),
             },
         );
+        // Each pose's rotation matrix once, not once per observation.
+        let rotations: Vec<Matrix3<f64>> = state
+            .poses
+            .iter()
+            .map(|pose| pose.rotation.to_rotation_matrix().into_inner())
+            .collect();
         self.rows
             .par_iter_mut()
             .zip(self.active.par_iter())
@@ -104,8 +110,6 @@ impl LmProblem for Reprojection<'_> {
                 };
                 match (left, right) {
                     (Some((pixel, a)), Some(right)) => {
-                        let rotation: Matrix3<f64> =
-                            pose.rotation.to_rotation_matrix().into_inner();
                         let mut a3 = Matrix3::zeros();
                         a3.fixed_view_mut::<2, 3>(0, 0).copy_from(&a);
                         let mut residual = Vector3::zeros();
@@ -120,7 +124,7 @@ impl LmProblem for Reprojection<'_> {
                         *row = Linearized {
                             residual: residual / obs.sigma,
                             pose: a3 * point_jacobian(&x),
-                            point: a3 * rotation,
+                            point: a3 * rotations[obs.pose],
                         };
                         usize::from(row.residual.iter().all(|v| v.is_finite()))
                     }

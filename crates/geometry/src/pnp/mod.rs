@@ -167,7 +167,11 @@ impl Estimator for PnpEstimator<'_> {
             whitening: self.whitening,
             indices,
         };
-        let cfg = huber_irls(self.sigma_px, LO_IRLS_ITERATIONS);
+        // Only the pose is kept: the covariance's extra pass over the rows is skipped.
+        let cfg = IrlsConfig {
+            covariance: false,
+            ..huber_irls(self.sigma_px, LO_IRLS_ITERATIONS)
+        };
         if let Ok(res) = irls(&mut problem, *start, &cfg) {
             out.push(res.state);
         }
@@ -497,8 +501,13 @@ fn solve(
             need: cfg.min_inliers.max(MIN_POINTS),
         });
     }
+    // Each point is projected once; a re-paired correspondence then costs one distance.
+    let projected: Vec<Option<Vector2<f64>>> = world
+        .iter()
+        .map(|p| camera.project(&(pose * p).coords))
+        .collect();
     let p0 = repaired_chance_rate(world.len(), |k, j| {
-        reprojection_px(camera, &pose, &world[k], &px[j]) < cfg.ransac.threshold * sg[j]
+        projected[k].is_some_and(|q| (q - px[j]).norm() < cfg.ransac.threshold * sg[j])
     });
     let evidence = PnpEvidence {
         candidates: pixels.len(),
