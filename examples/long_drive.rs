@@ -14,7 +14,12 @@
 //! evaluation) and the ratio of the last two (an instant's `VmRSS` dips when the allocator
 //! returns memory, the peak does not), the local map's points at frame 300 and their maximum, and the tracker's mean
 //! time per frame over frames 100-400 and over the last 300 frames (rendering excluded).
+//! It also reads the heap itself: the bytes the program holds at the end of each frame
+//! ([`CountingAllocator`]) at frame 300, their maximum after it and at the last frame
+//! (`heap_mib_*`), which no allocator's timing of returning pages moves.
 
+use std::alloc::{GlobalAlloc, Layout, System};
+use std::sync::atomic::{AtomicUsize, Ordering};
 use std::time::Instant;
 
 use nalgebra::Isometry3;
@@ -26,6 +31,58 @@ use vofront::odometry::{TrackStatus, Tracker};
 use vofront::trajectory::Trajectory;
 use vofront_fixtures::image2d::to_gray8;
 use vofront_fixtures::long_drive::{LongDrive, LONG_DRIVE_SIZE};
+
+/// The system allocator, counting the bytes the program holds in [`HEAP_BYTES`].
+struct CountingAllocator;
+
+/// Bytes allocated and not yet freed.
+static HEAP_BYTES: AtomicUsize = AtomicUsize::new(0);
+
+// SAFETY: every call is forwarded unchanged to `System`, which upholds `GlobalAlloc`'s
+// contract; the counter is only arithmetic on the sizes.
+unsafe impl GlobalAlloc for CountingAllocator {
+    unsafe fn alloc(&self, layout: Layout) -> *mut u8 {
+        // SAFETY: the caller's `layout` is passed on as it came.
+        let p = unsafe { System.alloc(layout) };
+        if !p.is_null() {
+            HEAP_BYTES.fetch_add(layout.size(), Ordering::Relaxed);
+        }
+        p
+    }
+
+    unsafe fn alloc_zeroed(&self, layout: Layout) -> *mut u8 {
+        // SAFETY: as `alloc`.
+        let p = unsafe { System.alloc_zeroed(layout) };
+        if !p.is_null() {
+            HEAP_BYTES.fetch_add(layout.size(), Ordering::Relaxed);
+        }
+        p
+    }
+
+    unsafe fn dealloc(&self, ptr: *mut u8, layout: Layout) {
+        HEAP_BYTES.fetch_sub(layout.size(), Ordering::Relaxed);
+        // SAFETY: `ptr` came from this allocator (so from `System`) with `layout`.
+        unsafe { System.dealloc(ptr, layout) }
+    }
+
+    unsafe fn realloc(&self, ptr: *mut u8, layout: Layout, new_size: usize) -> *mut u8 {
+        // SAFETY: as `dealloc`, with the caller's valid `new_size`.
+        let p = unsafe { System.realloc(ptr, layout, new_size) };
+        if !p.is_null() {
+            HEAP_BYTES.fetch_add(new_size, Ordering::Relaxed);
+            HEAP_BYTES.fetch_sub(layout.size(), Ordering::Relaxed);
+        }
+        p
+    }
+}
+
+#[global_allocator]
+static ALLOCATOR: CountingAllocator = CountingAllocator;
+
+/// [`HEAP_BYTES`] in MiB.
+fn heap_mib() -> f64 {
+    HEAP_BYTES.load(Ordering::Relaxed) as f64 / (1024.0 * 1024.0)
+}
 
 /// `(VmRSS, VmHWM)` of this process, MiB (`None` where `/proc` is not there).
 fn memory_mib() -> Option<(f64, f64)> {
@@ -74,6 +131,7 @@ fn main() -> Result<(), String> {
     let mut map_points = vec![0; frames];
     let (mut rss_max, mut rss_300, mut points_300) = (0.0_f64, f64::NAN, 0);
     let (mut hwm_300, mut hwm_run) = (f64::NAN, f64::NAN);
+    let (mut heap_300, mut heap_max, mut heap_last) = (f64::NAN, 0.0_f64, f64::NAN);
     let (mut render_s, mut breaks) = (0.0, 0);
     for i in 0..frames {
         let render_start = Instant::now();
@@ -94,6 +152,15 @@ fn main() -> Result<(), String> {
             println!("frame {i}: {status:?}: {message}");
         }
         map_points[i] = tracker.details().map_or(0, |d| d.map_points.len());
+        // The heap at the end of the frame: what the tracker (and the renderer) keep.
+        drop((frame, estimate));
+        heap_last = heap_mib();
+        if i == 300.min(frames - 1) {
+            heap_300 = heap_last;
+        }
+        if i >= 300.min(frames - 1) {
+            heap_max = heap_max.max(heap_last);
+        }
         if let Some((rss, hwm)) = memory_mib() {
             rss_max = rss_max.max(rss);
             hwm_run = hwm;
@@ -123,7 +190,7 @@ fn main() -> Result<(), String> {
     let path = drive.path_length();
     let count = |s: TrackStatus| posed.iter().filter(|(status, _)| *status == s).count();
     println!(
-        "{{\"frames\": {frames}, \"size\": \"{}x{}\", \"posed\": {}, \"lost\": {}, \"reinitialised\": {}, \"segment_breaks\": {breaks}, \"path_m\": {path:.1}, \"ate_m\": {ate_m:.3}, \"ate_percent\": {:.3}, \"rss_mib_300\": {rss_300:.1}, \"rss_mib_max\": {rss_max:.1}, \"rss_ratio\": {:.3}, \"hwm_mib\": {:.1}, \"hwm_mib_300\": {hwm_300:.1}, \"hwm_mib_run\": {hwm_run:.1}, \"hwm_ratio\": {:.3}, \"map_points_300\": {points_300}, \"map_points_max\": {}, \"ms_100_400\": {:.2}, \"ms_last_300\": {:.2}, \"render_s\": {render_s:.1}}}",
+        "{{\"frames\": {frames}, \"size\": \"{}x{}\", \"posed\": {}, \"lost\": {}, \"reinitialised\": {}, \"segment_breaks\": {breaks}, \"path_m\": {path:.1}, \"ate_m\": {ate_m:.3}, \"ate_percent\": {:.3}, \"rss_mib_300\": {rss_300:.1}, \"rss_mib_max\": {rss_max:.1}, \"rss_ratio\": {:.3}, \"hwm_mib\": {:.1}, \"hwm_mib_300\": {hwm_300:.1}, \"hwm_mib_run\": {hwm_run:.1}, \"hwm_ratio\": {:.3}, \"heap_mib_300\": {heap_300:.2}, \"heap_mib_max\": {heap_max:.2}, \"heap_mib_last\": {heap_last:.2}, \"heap_ratio\": {:.3}, \"map_points_300\": {points_300}, \"map_points_max\": {}, \"ms_100_400\": {:.2}, \"ms_last_300\": {:.2}, \"render_s\": {render_s:.1}}}",
         size.0,
         size.1,
         trajectory.len(),
@@ -133,6 +200,7 @@ fn main() -> Result<(), String> {
         rss_max / rss_300,
         memory_mib().map_or(f64::NAN, |m| m.1),
         hwm_run / hwm_300,
+        heap_max / heap_300,
         map_points.iter().max().unwrap_or(&0),
         mean(&track_ms, 100..400),
         mean(&track_ms, frames.saturating_sub(300)..frames),
