@@ -79,7 +79,7 @@ fn two_view_pose_on_the_street_does_not_depend_on_the_seed() {
             let cfg = RelativePoseConfig {
                 ransac: RansacConfig {
                     seed,
-                    ..RansacConfig::default()
+                    ..RelativePoseConfig::default().ransac
                 },
                 ..RelativePoseConfig::default()
             };
@@ -130,9 +130,15 @@ fn pnp_pose_on_the_street_does_not_depend_on_the_seed() {
 
 /// The real pair of issue 13: KITTI 06 frames 0 -> 1 (the car drives straight ahead), 1500
 /// ORB features, ratio 0.8. Seed 0 used to lock onto a sideways model with fewer inliers.
+/// Seeds 0 and 7 did again with a per-cell floor of 96 px: a sideways motion turned by 7
+/// degrees has its epipolar lines along the image rows, so it holds every match that moves
+/// less than a pixel vertically (distant points, points near the horizon row), 425 of 506, and
+/// the local optimisation skipped the hypotheses of the true motion (460 inliers) because 90%
+/// of their inliers were the sideways model's (`RansacConfig::lo_skip_shared`, since turned
+/// off). Four feature sets, 20 seeds each, with the two-view estimator's own RANSAC settings.
 #[test]
 fn two_view_pose_on_real_forward_driving_does_not_depend_on_the_seed() {
-    use vofront::features::{match_descriptors, MatchConfig, Orb, OrbConfig};
+    use vofront::features::{Orb, OrbConfig};
     use vofront::geometry::{Camera, Pinhole};
     let dir =
         std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../shared/data/kitti_06/image_0");
@@ -142,16 +148,31 @@ fn two_view_pose_on_real_forward_driving_does_not_depend_on_the_seed() {
     }
     let camera =
         Camera::pinhole(Pinhole::new(707.0912, 707.0912, 601.8873, 183.1104).expect("intrinsics"));
-    let orb = Orb::new(OrbConfig {
-        n_features: 1500,
-        ..OrbConfig::default()
-    })
-    .expect("orb");
-    let detect = |name: &str| {
-        let image = vofront::input::load_gray(&dir.join(name)).expect("image");
-        orb.detect_and_describe(&image).expect("features")
-    };
-    let (a, b) = (detect("000000.png"), detect("000001.png"));
+    let images = ["000000.png", "000001.png"]
+        .map(|name| vofront::input::load_gray(&dir.join(name)).expect("image"));
+    for cell_floor in [0, 64, 96, 128] {
+        let orb = Orb::new(OrbConfig {
+            n_features: 1500,
+            cell_floor,
+            ..OrbConfig::default()
+        })
+        .expect("orb");
+        let [a, b] = images
+            .each_ref()
+            .map(|image| orb.detect_and_describe(image).expect("features"));
+        forward_for_every_seed(&a, &b, &camera, cell_floor);
+    }
+}
+
+/// Asserts that the two-view pose of the matches of `a` to `b` is a forward motion for seeds
+/// 0-19.
+fn forward_for_every_seed(
+    a: &vofront::features::Features,
+    b: &vofront::features::Features,
+    camera: &vofront::geometry::Camera,
+    cell_floor: usize,
+) {
+    use vofront::features::{match_descriptors, MatchConfig};
     let matching = MatchConfig {
         ratio: Some(0.8),
         ..MatchConfig::default()
@@ -160,21 +181,21 @@ fn two_view_pose_on_real_forward_driving_does_not_depend_on_the_seed() {
     let pixel = |f: &vofront::features::Features, i: u32| {
         Vector2::new(f64::from(f.xs()[i as usize]), f64::from(f.ys()[i as usize]))
     };
-    let x1: Vec<_> = matches.iter().map(|m| pixel(&a, m.query)).collect();
-    let x2: Vec<_> = matches.iter().map(|m| pixel(&b, m.train)).collect();
+    let x1: Vec<_> = matches.iter().map(|m| pixel(a, m.query)).collect();
+    let x2: Vec<_> = matches.iter().map(|m| pixel(b, m.train)).collect();
     for seed in 0..20 {
         let cfg = RelativePoseConfig {
             ransac: RansacConfig {
                 seed,
-                ..RansacConfig::default()
+                ..RelativePoseConfig::default().ransac
             },
             ..RelativePoseConfig::default()
         };
-        let rel = estimate_relative_pose(&x1, &x2, &camera, &cfg).expect("a pose");
+        let rel = estimate_relative_pose(&x1, &x2, camera, &cfg).expect("a pose");
         // Forward motion: x2 = R x1 + t with the camera moving along +Z gives t ~ (0, 0, -1).
         assert!(
             rel.translation().z < -0.99 && rel.rotation().angle().to_degrees() < 0.5,
-            "seed {seed}: t = {:?}, {} inliers",
+            "cell floor {cell_floor}, seed {seed}: t = {:?}, {} inliers",
             rel.translation(),
             rel.inlier_count()
         );

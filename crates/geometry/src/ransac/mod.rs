@@ -10,7 +10,10 @@
 //! that noisy minimal models of the true one never clear, so they would never be polished.
 //! With [`RansacConfig::lo_skip_shared`] below 1, a hypothesis that scores no better than the
 //! best refined model, has no more inliers and shares nearly all of them with it is not
-//! polished: local optimisation starts from the inliers, so it would find that model again.
+//! polished, on the premise that local optimisation, starting from nearly the same inliers,
+//! would find that model again. The premise fails when two distinct models share most
+//! inliers (in forward motion the distant points lie near the epipolar lines of a wrong
+//! motion too): the better model is then never polished. No default turns it on.
 //!
 //! Stopping: the iteration count adapts to the inlier ratio `w` of the best *confirmed* model,
 //! `k = log(1 - p) / log(1 - w^s)` for confidence `p` and sample size `s`. A model is confirmed
@@ -101,7 +104,8 @@ pub struct RansacConfig {
     pub lo_rounds: usize,
     /// Local optimisation skips a hypothesis whose score is no lower than the best refined
     /// model's, with no more inliers than it, at least this share of them being that model's
-    /// inliers (see the module documentation); above 1 (the default) nothing is skipped.
+    /// inliers (see the module documentation: faster, but it can miss a better model that
+    /// shares most inliers); above 1 (the default) nothing is skipped.
     pub lo_skip_shared: f64,
 }
 

@@ -249,3 +249,77 @@ fn hypotheses_that_share_the_polished_inliers_are_not_polished_again() {
     // A share above 1 can never be met: nothing is skipped.
     assert_eq!(run(1.0 + 1e-9).1, refits_every);
 }
+
+/// Two lines sharing most inliers: 60 points near `x = 0` lie within the threshold (0.1) of
+/// any line through the origin with a slope under 0.4; far out, 20 points lie on the true line
+/// `y = 0` and 10 on `y = 0.3 x`; 20 gross outliers.
+fn shared_inliers() -> Line {
+    let mut rng = StdRng::seed_from_u64(5);
+    let mut pts = Vec::new();
+    for _ in 0..60 {
+        pts.push((rng.random_range(-0.2..0.2), rng.random_range(-0.02..0.02)));
+    }
+    for _ in 0..20 {
+        pts.push((rng.random_range(2.0..4.0), rng.random_range(-0.02..0.02)));
+    }
+    for _ in 0..10 {
+        let x = rng.random_range(2.0..4.0);
+        pts.push((x, 0.3 * x + rng.random_range(-0.02..0.02)));
+    }
+    for _ in 0..20 {
+        pts.push((rng.random_range(-4.0..4.0), rng.random_range(2.0..6.0)));
+    }
+    Line(pts)
+}
+
+/// [`Line`] whose every minimal sample gives the line `y = 0.05 x`: a raw hypothesis of the
+/// true line `y = 0` that keeps only the 60 points near the origin.
+struct NearTrue(Line);
+
+impl Estimator for NearTrue {
+    type Model = (f64, f64);
+    fn sample_size(&self) -> usize {
+        self.0.sample_size()
+    }
+    fn len(&self) -> usize {
+        self.0.len()
+    }
+    fn fit_minimal(&self, _s: &[usize], out: &mut Vec<(f64, f64)>) {
+        out.clear();
+        out.push((0.05, 0.0));
+    }
+    fn fit_nonminimal(&self, s: &[usize], out: &mut Vec<(f64, f64)>) {
+        self.0.fit_nonminimal(s, out);
+    }
+    fn residual_sq(&self, m: &(f64, f64), i: usize) -> f64 {
+        self.0.residual_sq(m, i)
+    }
+}
+
+#[test]
+fn skipping_a_hypothesis_that_shares_the_polished_inliers_can_miss_the_better_model() {
+    let est = NearTrue(shared_inliers());
+    // The guess, near the wrong line, is polished first onto `y = 0.3 x` (70 inliers). The
+    // raw `y = 0.05 x` then scores worse than it, has fewer inliers (60), all of them the
+    // wrong line's. Polished, its first refit on the 60 points near the origin brings in the
+    // 20 on `y = 0`, and it ends on the true line (80 inliers); skipped, it never does.
+    let run = |lo_skip_shared| {
+        let cfg = RansacConfig {
+            threshold: 0.1,
+            lo_skip_shared,
+            ..Default::default()
+        };
+        ransac_from(&est, &cfg, Some((0.3, 0.03))).expect("a model")
+    };
+    let polished = run(RansacConfig::default().lo_skip_shared);
+    assert!(
+        polished.model.0.abs() < 0.02 && polished.model.1.abs() < 0.02,
+        "{:?}",
+        polished.model
+    );
+    assert_eq!(polished.inlier_count(), 80);
+    let skipped = run(0.9);
+    assert!((skipped.model.0 - 0.3).abs() < 0.02, "{:?}", skipped.model);
+    assert_eq!(skipped.inlier_count(), 70);
+    assert!(skipped.score > polished.score);
+}

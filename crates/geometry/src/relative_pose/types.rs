@@ -42,18 +42,14 @@ pub struct RelativePoseConfig {
     pub quality: QualityConfig,
 }
 
-/// The two-view searches' [`RansacConfig::lo_skip_shared`]: a hypothesis that has 90% of its
-/// inliers in common with the best refined model (and no more of them, and no lower score) is
-/// not polished again; the chosen model is refined to convergence afterwards.
-pub const LO_SKIP_SHARED: f64 = 0.9;
-
 impl Default for RelativePoseConfig {
     fn default() -> Self {
         Self {
-            ransac: RansacConfig {
-                lo_skip_shared: LO_SKIP_SHARED,
-                ..RansacConfig::default()
-            },
+            // Every hypothesis that beats the best raw score is polished
+            // ([`RansacConfig::lo_skip_shared`] off): in forward motion the distant points fit
+            // a wrong motion as well as the true one, and skipping the true motion's
+            // hypotheses for sharing them ended on the wrong one.
+            ransac: RansacConfig::default(),
             refine: true,
             min_parallax_deg: 0.0,
             focal_uncertainty: 0.005,
