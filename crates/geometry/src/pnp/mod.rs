@@ -20,17 +20,19 @@
 //! pose across the direction its depth error moves its image, and hardly along it.
 
 mod point_noise;
+mod quality;
 
 pub use point_noise::add_point_covariances;
 use point_noise::{point_whitening, whitened_error};
+use quality::pnp_uncertainty;
+pub use quality::{pnp_quality, PnpEvidence};
 
 use nalgebra::{
     Isometry3, Matrix2, Matrix2x3, Matrix3, Matrix6, Point3, SVector, Vector2, Vector3,
 };
-use vofront_robust::quality::{block_rows, log10_nfa, repaired_chance_rate, rms_of};
+use vofront_robust::quality::repaired_chance_rate;
 use vofront_robust::{
-    irls, Convergence, IrlsConfig, LmConfig, Loss, Problem, Quality, QualityConfig, Reason, Rows,
-    ScaleMode, Support, Uncertainty,
+    irls, Convergence, IrlsConfig, LmConfig, Loss, Problem, Quality, QualityConfig, Rows, ScaleMode,
 };
 
 use crate::camera::Camera;
@@ -238,11 +240,6 @@ fn reprojection(
     u: &Vector2<f64>,
 ) -> Option<Vector2<f64>> {
     camera.project(&(t * p).coords).map(|q| q - u)
-}
-
-/// Length of [`reprojection`], pixels; infinite behind the camera.
-fn reprojection_px(camera: &Camera, t: &Isometry3<f64>, p: &Point3<f64>, u: &Vector2<f64>) -> f64 {
-    reprojection(camera, t, p, u).map_or(f64::INFINITY, |r| r.norm())
 }
 
 /// Estimates the camera pose `T_cw` from world points and their observed (distorted) pixels:
@@ -486,12 +483,19 @@ fn solve(
         }
         used = inliers_of(&pose, &whitening);
     }
+    // Each point is projected once, for the inliers' errors and the chance rate.
+    let projected: Vec<Option<Vector2<f64>>> = world
+        .iter()
+        .map(|p| camera.project(&(pose * p).coords))
+        .collect();
     let mut inliers = vec![false; pixels.len()];
     // Plain and whitened squared reprojection errors.
     let (mut sq, mut sq_white) = (0.0, 0.0);
     for &k in &used {
         inliers[index[k]] = true;
-        sq += reprojection_px(camera, &pose, &world[k], &px[k]).powi(2);
+        sq += projected[k]
+            .map_or(f64::INFINITY, |q| (q - px[k]).norm())
+            .powi(2);
         sq_white += whitened_error(camera, &pose, &world[k], &px[k], &whitening[k]).powi(2);
     }
     let inlier_count = used.len();
@@ -501,11 +505,7 @@ fn solve(
             need: cfg.min_inliers.max(MIN_POINTS),
         });
     }
-    // Each point is projected once; a re-paired correspondence then costs one distance.
-    let projected: Vec<Option<Vector2<f64>>> = world
-        .iter()
-        .map(|p| camera.project(&(pose * p).coords))
-        .collect();
+    // A re-paired correspondence costs one distance.
     let p0 = repaired_chance_rate(world.len(), |k, j| {
         projected[k].is_some_and(|q| (q - px[j]).norm() < cfg.ransac.threshold * sg[j])
     });
@@ -533,73 +533,3 @@ fn solve(
 
 /// P3P solutions per minimal sample (the quartic's largest root count).
 const P3P_SOLUTIONS: usize = 4;
-
-/// What [`pnp_quality`] rests on.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct PnpEvidence {
-    /// Input correspondences.
-    pub candidates: usize,
-    /// Correspondences with a valid bearing (the chance test's population).
-    pub tested: usize,
-    /// Inliers of the final pose.
-    pub inliers: usize,
-    /// Share of re-paired correspondences `(P_i, u_j)` within the inlier threshold of the final
-    /// pose ([`repaired_chance_rate`]).
-    pub p0: f64,
-    /// Hypotheses scored: RANSAC iterations times the P3P solutions, plus the prior.
-    pub hypotheses: f64,
-    /// Per-coordinate whitened reprojection residual scale of the inliers,
-    /// `sqrt(sum |W (u - pi(T P))|^2 / (2 n - 6))` (`W = I / s` for a pixel of noise scale `s`
-    /// and an exact point; see [`solve_pnp_ransac_with_point_covariances`]), pixels.
-    pub sigma_px: f64,
-    /// Iterations of the Huber refinement.
-    pub iterations: usize,
-    /// The refinement met its convergence test (true when not refined).
-    pub converged: bool,
-    /// The refinement's normal equations were singular.
-    pub degenerate: bool,
-}
-
-/// The quality record of a PnP pose: support `inliers` of `candidates`, the chance test
-/// `log10 NFA` of the consensus with a minimal sample of 3 ([`log10_nfa`]), the covariance of
-/// the left increment `(rho, phi)` of `T_cw` (metres, radians; 6x6) with
-/// `translation_sigma_m = sqrt(tr Sigma_rho)` and `rotation_sigma_deg = sqrt(tr Sigma_phi)`.
-pub fn pnp_quality(
-    ev: &PnpEvidence,
-    covariance: Option<&Matrix6<f64>>,
-    cfg: &QualityConfig,
-) -> Quality {
-    let support = Support {
-        log10_nfa: Some(log10_nfa(ev.tested, ev.inliers, 3, ev.p0, ev.hypotheses)),
-        ..Support::new(ev.inliers, ev.candidates)
-    };
-    let uncertainty = covariance.map_or_else(Uncertainty::default, pnp_uncertainty);
-    let flags: &[Reason] = if ev.degenerate {
-        &[Reason::Degenerate]
-    } else {
-        &[]
-    };
-    Quality::judge(
-        support,
-        ev.sigma_px,
-        ev.iterations,
-        ev.converged,
-        uncertainty,
-        flags,
-        cfg,
-    )
-}
-
-/// The uncertainty record of a PnP covariance of `(rho, phi)`: the 6x6 matrix,
-/// `translation_sigma_m = sqrt(tr Sigma_rho)` and `rotation_sigma_deg = sqrt(tr Sigma_phi)`.
-pub(super) fn pnp_uncertainty(c: &Matrix6<f64>) -> Uncertainty {
-    Uncertainty {
-        translation_sigma_m: Some(rms_of(&block_rows(|r, k| c[(r, k)], 0, 3), 1.0)),
-        rotation_sigma_deg: Some(rms_of(
-            &block_rows(|r, k| c[(r, k)], 3, 3),
-            1f64.to_degrees(),
-        )),
-        covariance: Some(block_rows(|r, k| c[(r, k)], 0, 6)),
-        ..Uncertainty::default()
-    }
-}
