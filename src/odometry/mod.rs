@@ -56,7 +56,7 @@ use nalgebra::{Isometry3, Matrix3, Point3, Vector2};
 use vofront_core::Camera;
 use vofront_features::{match_descriptors, match_windowed, Features, Match, MatchConfig};
 use vofront_geometry::pnp::{solve_pnp_ransac_with_point_covariances, PnpConfig, PnpResult};
-use vofront_robust::{Quality, Verdict};
+use vofront_robust::{Quality, Reason, Verdict};
 
 use crate::dataset::Frame;
 use motion::ConstantVelocity;
@@ -313,6 +313,25 @@ impl FrameEstimate {
         }
         self.pose_quality = Some(q);
         self
+    }
+
+    /// The estimate with its pose quality flagged `reason` (the status follows the new
+    /// verdict; `why` becomes the message when there was none). An estimate without a pose
+    /// quality is only marked `unreliable` when it was `ok`.
+    pub(crate) fn flagged(mut self, reason: Reason, why: String) -> Self {
+        self.message.get_or_insert(why);
+        match self.pose_quality.take() {
+            Some(mut q) => {
+                q.flag(reason);
+                self.judged(q)
+            }
+            None => {
+                if self.status == TrackStatus::Ok {
+                    self.status = TrackStatus::Unreliable;
+                }
+                self
+            }
+        }
     }
 
     /// A lost frame, reported at the motion model's guess `pose_wc`.

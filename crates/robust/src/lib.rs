@@ -66,6 +66,6 @@ pub use normal::NormalEquations;
 pub use quality::{Quality, QualityConfig, Reason, Support, Uncertainty, Verdict};
 pub use sandwich::{at_least, clustered_sandwich_covariance, sandwich_covariance};
 pub use scale::{mad_sigma, mad_sigma_about_zero, median_in_place};
-pub use schur::{Coupling, PointBlock, SchurStep, SchurSystem};
+pub use schur::{Coupling, PointBlock, PosePair, SchurStep, SchurSystem};
 pub use secant::secant_covariance;
 pub use solve::{scaled_condition, solve_damped, Damping, SolveError};

@@ -10,8 +10,11 @@
 //! [ W^T V ] [dp] = - [g_p]
 //! ```
 //!
-//! with `U = diag(U_i)` (`P x P` per pose), `V = diag(V_j)` (`Q x Q` per point) and one
-//! `P x Q` block `W_ij = sum w J_pose^T J_point` per observation of point `j` from pose `i`.
+//! with `U` block-diagonal (`U_i`, `P x P` per pose) except for the pose pairs that share a
+//! residual (a photometric residual depends on the point's host frame and on the frame it is
+//! seen in: `U_ik = sum w J_i^T J_k`, given in [`SchurSystem::pairs`]), `V = diag(V_j)`
+//! (`Q x Q` per point) and one `P x Q` block `W_ij = sum w J_pose^T J_point` per observation
+//! of point `j` from pose `i`.
 //! Eliminating the points gives the reduced camera system
 //! `(U - W V^-1 W^T) dc = -g_c + W V^-1 g_p`, a dense `Pk x Pk` Cholesky, and
 //! back-substitution `dp_j = V_j^-1 (-g_p,j - sum_i W_ij^T dc_i)`. The damping `lambda D` is
@@ -79,6 +82,17 @@ impl<const P: usize, const Q: usize> PointBlock<P, Q> {
     }
 }
 
+/// An off-diagonal pose block: residuals that depend on both free poses `i != k`.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct PosePair<const P: usize> {
+    /// One of the two free poses.
+    pub i: usize,
+    /// The other free pose (`k != i`).
+    pub k: usize,
+    /// `U_ik = sum w J_i^T J_k` (`P x P`); several blocks of one pair are summed.
+    pub u: SMatrix<f64, P, P>,
+}
+
 /// The normal equations of a bundle at one state, in block form (see the module
 /// documentation).
 #[derive(Debug, Clone, PartialEq)]
@@ -89,6 +103,8 @@ pub struct SchurSystem<const P: usize, const Q: usize> {
     pub gc: Vec<SVector<f64, P>>,
     /// One block per point.
     pub points: Vec<PointBlock<P, Q>>,
+    /// The off-diagonal pose blocks (none when every residual depends on one pose).
+    pub pairs: Vec<PosePair<P>>,
 }
 
 /// `M + lambda D` for a square block, `D` as `damping` says.
@@ -156,6 +172,16 @@ impl<const P: usize, const Q: usize> SchurSystem<P, Q> {
         let (mut s, mut b) = partial
             .into_iter()
             .fold(zero(), |(s1, b1), (s2, b2)| (s1 + s2, b1 + b2));
+        for pair in &self.pairs {
+            // Upper block triangle (a pair given as `i > k` is transposed into it).
+            let (i, k, u) = if pair.i < pair.k {
+                (pair.i, pair.k, pair.u)
+            } else {
+                (pair.k, pair.i, pair.u.transpose())
+            };
+            let mut block = s.fixed_view_mut::<P, P>(P * i, P * k);
+            block += u;
+        }
         s.fill_lower_triangle_with_upper_triangle();
         for (i, (u, g)) in self.u.iter().zip(&self.gc).enumerate() {
             let mut block = s.fixed_view_mut::<P, P>(P * i, P * i);
@@ -180,6 +206,7 @@ impl<const P: usize, const Q: usize> LinearSystem for SchurSystem<P, Q> {
         max_condition: f64,
     ) -> Result<SchurStep<P, Q>, SolveError> {
         let finite = self.u.iter().all(|m| m.iter().all(|v| v.is_finite()))
+            && self.pairs.iter().all(|p| p.u.iter().all(|v| v.is_finite()))
             && self.gc.iter().all(|g| g.iter().all(|v| v.is_finite()))
             && self
                 .points
@@ -224,7 +251,12 @@ impl<const P: usize, const Q: usize> LinearSystem for SchurSystem<P, Q> {
             .iter()
             .zip(&step.poses)
             .map(|(u, d)| (d.transpose() * u * d)[(0, 0)])
-            .sum();
+            .sum::<f64>()
+            + self
+                .pairs
+                .iter()
+                .map(|p| 2.0 * (step.poses[p.i].transpose() * p.u * step.poses[p.k])[(0, 0)])
+                .sum::<f64>();
         let points: f64 = self
             .points
             .iter()

@@ -1,6 +1,6 @@
 //! Settings of the direct monocular tracker.
 
-use vofront_direct::mono::{DepthRules, SelectConfig};
+use vofront_direct::mono::{BundleConfig, DepthRules, SelectConfig};
 use vofront_direct::{CalibrationPrior, Se3Config};
 use vofront_features::{MatchConfig, OrbConfig};
 use vofront_geometry::RelativePoseConfig;
@@ -39,6 +39,11 @@ pub struct DirectMonoConfig {
     pub rebuild_growth: f64,
     /// Previous keyframes whose immature points are still refined and handed over.
     pub window: usize,
+    /// Keyframes before the outgoing one that take part in the photometric bundle adjustment
+    /// run at each new keyframe (`bundle`); 0 runs none.
+    pub bundle_window: usize,
+    /// The windowed photometric bundle adjustment (its first `fixed` frames hold the gauge).
+    pub bundle: BundleConfig,
     /// When to take a new keyframe (translation relative to the median depth, rotation,
     /// tracked ratio, residual growth).
     pub keyframe: KeyframePolicy,
@@ -49,6 +54,15 @@ pub struct DirectMonoConfig {
     pub retry_residual_growth: f64,
     /// Rotation of the perturbed starts, degrees.
     pub retry_turn_deg: f64,
+    /// A tracked frame whose position differs from the constant-velocity prediction by more
+    /// than this fraction of the recent step length breaks the trust in the map's scale: it
+    /// and every later frame of the map are flagged `inconsistent` (a vehicle or a hand does
+    /// not halve or reverse its speed between two frames; a map whose translation collapsed
+    /// keeps tracking at its collapsed scale).
+    pub max_motion_jump: f64,
+    /// The jump is judged only when the recent step is at least this fraction of the
+    /// keyframe's median depth (slower motion is within the alignment's noise).
+    pub min_judged_step: f64,
     /// Thresholds of the alignment's verdict, used in place of `se3.quality`.
     pub quality: QualityConfig,
 }
@@ -78,6 +92,8 @@ impl Default for DirectMonoConfig {
             min_active_points: 100,
             rebuild_growth: 1.1,
             window: 0,
+            bundle_window: 4,
+            bundle: BundleConfig::default(),
             keyframe: KeyframePolicy {
                 max_relative_translation: 0.15,
                 max_rotation_deg: 5.0,
@@ -87,6 +103,8 @@ impl Default for DirectMonoConfig {
             min_inlier_ratio: 0.4,
             retry_residual_growth: 3.0,
             retry_turn_deg: 2.0,
+            max_motion_jump: 0.5,
+            min_judged_step: 0.01,
             // A sparse reference has hundreds of points, not a dense one's thousands of pixels.
             quality: QualityConfig {
                 min_pixels: 100,

@@ -20,6 +20,10 @@ pub(super) struct MonoKeyframe {
     pub image: Image<f32>,
     /// `T_wc`.
     pub t_wc: Isometry3<f64>,
+    /// Brightness `I = exp(a) L + b` (the map's first keyframe has `a = b = 0`).
+    pub a: f64,
+    /// See `a`, grey levels.
+    pub b: f64,
     pub points: Vec<MonoPoint>,
     /// The active points as an SE(3) reference.
     pub reference: Se3Reference,
@@ -70,7 +74,7 @@ impl MonoKeyframe {
     /// `min_active_points` active ones.
     fn build(
         image: Image<f32>,
-        t_wc: Isometry3<f64>,
+        (t_wc, a, b): (Isometry3<f64>, f64, f64),
         points: Vec<MonoPoint>,
         pinhole: Pinhole,
         cfg: &DirectMonoConfig,
@@ -88,6 +92,8 @@ impl MonoKeyframe {
         Ok(Self {
             image,
             t_wc,
+            a,
+            b,
             points,
             reference,
             built_with: active.len(),
@@ -134,15 +140,16 @@ impl MonoKeyframe {
             t_cur_ref: t_21,
         };
         refine_points(&mut points, &pair, &cfg.depth);
-        Self::build(image, t_wc, points, pinhole, cfg)
+        Self::build(image, (t_wc, 0.0, 0.0), points, pinhole, cfg)
     }
 
-    /// The next keyframe: `image` at `t_wc`, `t_new_old` from this one, with this keyframe's
-    /// active points carried over and immature points in the free blocks.
+    /// The next keyframe: `image` at `t_wc` with brightness `(a, b)`, `t_new_old` from this
+    /// one, with this keyframe's active points carried over and immature points in the free
+    /// blocks.
     pub fn next(
         &self,
         image: Image<f32>,
-        t_wc: Isometry3<f64>,
+        (t_wc, a, b): (Isometry3<f64>, f64, f64),
         t_new_old: &Isometry3<f64>,
         pinhole: Pinhole,
         cfg: &DirectMonoConfig,
@@ -159,7 +166,7 @@ impl MonoKeyframe {
         let rho = median_rho(&points, cfg);
         let immature = immature_points(&image, &points, rho, cfg)?;
         points.extend(immature);
-        Self::build(image, t_wc, points, pinhole, cfg)
+        Self::build(image, (t_wc, a, b), points, pinhole, cfg)
     }
 
     /// Refines the points in `current` at `t_cur_kf`; rebuilds the reference when the active

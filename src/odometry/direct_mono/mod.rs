@@ -19,18 +19,28 @@
 //!    over `rho +- 2.5 sigma` and its filter updated; converged points become active, and the
 //!    reference is rebuilt when they grew by `rebuild_growth`.
 //! 4. A new keyframe (translation over the median depth, rotation, tracked ratio, residual
-//!    growth: [`KeyframePolicy`](super::keyframe::KeyframePolicy)) takes the active points
-//!    carried in (moved, projected, their filters transferred) and immature points in the
+//!    growth: [`KeyframePolicy`](super::keyframe::KeyframePolicy)) is first refined with the
+//!    window (`bundle`): the outgoing keyframe's active points, its pose and brightness, those
+//!    of the `bundle_window` keyframes before it and of the new one are adjusted jointly by
+//!    the photometric bundle ([`vofront_direct::mono::photometric_bundle`], the oldest two
+//!    frames holding the gauge), the points it finds to be outliers dropped. The new keyframe,
+//!    at its refined pose, takes the active points carried in (moved, projected, their filters transferred) and immature points in the
 //!    blocks they leave free. The previous keyframe keeps its immature points in a window of
 //!    `window` keyframes: they are still searched in each frame (from `T_cur_kf = T_wc^-1
 //!    T_w_kf`), and each that converges is carried into the newest keyframe (SVO's seeds).
-//! 5. A frame that cannot be aligned is lost (the motion model coasts); it becomes the
+//! 5. A frame whose position jumps away from the constant-velocity prediction (by more than
+//!    `max_motion_jump` of the recent step length, when that step is at least
+//!    `min_judged_step` of the median depth) has broken the map's scale: it and every later
+//!    frame of the map are flagged [`Reason::Inconsistent`] (`unreliable`) until a new map.
+//! 6. A frame that cannot be aligned is lost (the motion model coasts); it becomes the
 //!    reference of a new start, placed at the coasted pose with the baseline the motion
 //!    model's step length gives, and the frames until then are located late.
 //!
-//! No windowed photometric bundle adjustment yet: keyframe poses and depths are not refined
-//! jointly.
+//! The bundle is DSO's windowed optimisation without marginalisation: keyframes leaving the
+//! window are dropped, not folded into a prior, and the frames between keyframes are not in
+//! it (their poses, already reported, are not revised).
 
+mod bundle;
 mod config;
 mod init;
 mod keyframe;
@@ -41,11 +51,13 @@ use std::time::Instant;
 use nalgebra::{Isometry3, UnitQuaternion, Vector3};
 use thiserror::Error;
 use vofront_core::{Camera, Pinhole};
+use vofront_direct::mono::FrameState;
 use vofront_direct::{Se3Config, Se3Result, Undistorter};
 use vofront_features::{FeatureError, Features, Orb};
 use vofront_image::Image;
-use vofront_robust::Verdict;
+use vofront_robust::{Reason, Verdict};
 
+use bundle::{frame_state, refine_window, WindowFrame};
 pub use config::DirectMonoConfig;
 use init::two_view;
 use keyframe::MonoKeyframe;
@@ -79,11 +91,14 @@ enum State {
         waiting: Waiting<Image<f32>>,
     },
     /// Tracking the keyframe; `T_cur_kf` of the last frame; the previous keyframes whose
-    /// immature points are still refined (oldest first).
+    /// immature points are still refined (oldest first); those of the bundle (oldest first).
     Tracking {
         kf: Box<MonoKeyframe>,
         last: Isometry3<f64>,
         window: VecDeque<MonoKeyframe>,
+        bundle: VecDeque<WindowFrame>,
+        /// The frame at which the map's scale was broken (a motion jump), if any.
+        scale_broken: Option<usize>,
     },
 }
 
@@ -360,6 +375,8 @@ impl DirectMonoTracker {
             kf: Box::new(kf),
             last: tv.t_21,
             window: VecDeque::new(),
+            bundle: VecDeque::new(),
+            scale_broken: None,
         };
         let quality = FrameQuality {
             inliers: tv.inliers.0,
@@ -380,24 +397,33 @@ impl DirectMonoTracker {
     }
 
     /// Tracks `image` against `kf`; on failure the frame is lost and becomes a new reference.
+    /// A frame that becomes a keyframe is first refined with the bundle window.
     fn track_keyframe(
         &mut self,
         mut kf: Box<MonoKeyframe>,
-        (last, mut window): (Isometry3<f64>, VecDeque<MonoKeyframe>),
+        (last, mut window, mut bundle, mut scale_broken): (
+            Isometry3<f64>,
+            VecDeque<MonoKeyframe>,
+            VecDeque<WindowFrame>,
+            Option<usize>,
+        ),
         image: Image<f32>,
         predicted: Isometry3<f64>,
         start: Instant,
     ) -> FrameEstimate {
         let prior = predicted.inverse() * kf.t_wc;
-        let fit = match self.align(&kf, &image, prior, last) {
+        let mut fit = match self.align(&kf, &image, prior, last) {
             Ok(fit) => fit,
             Err(e) => {
                 self.state = self.new_reference(image, predicted);
                 return FrameEstimate::lost(predicted, format!("tracking lost: {e}"), start);
             }
         };
-        let t_wc = kf.t_wc * fit.pose.inverse();
-        self.coast.motion.update(t_wc);
+        let mut t_wc = kf.t_wc * fit.pose.inverse();
+        if scale_broken.is_none() && self.motion_jump(&t_wc, &predicted, kf.median_depth(&self.cfg))
+        {
+            scale_broken = Some(self.late.frame());
+        }
         let first_residual = *kf.first_residual.get_or_insert(fit.rmse);
         let k = self.k();
         let t_cw = t_wc.inverse();
@@ -416,8 +442,31 @@ impl DirectMonoTracker {
         let mut keyframe = false;
         let mut last = fit.pose;
         if refined.is_err() || self.cfg.keyframe.needs_keyframe(&view) {
-            if let Ok(next) = kf.next(image, t_wc, &fit.pose, k, &self.cfg) {
+            let mut state = frame_state(&kf, &t_wc, &fit);
+            if self.cfg.bundle_window > 0 {
+                // A failed bundle (degenerate window) keeps the tracked poses.
+                if let Ok(s) = refine_window(&mut bundle, &mut kf, (&image, state), k, &self.cfg) {
+                    state = s;
+                    t_wc = s.t_cw.inverse();
+                    fit.pose = s.t_cw * kf.t_wc;
+                }
+            }
+            let at = (t_wc, state.a, state.b);
+            if let Ok(next) = kf.next(image, at, &fit.pose, k, &self.cfg) {
                 let mut old = std::mem::replace(&mut kf, Box::new(next));
+                if self.cfg.bundle_window > 0 {
+                    bundle.push_back(WindowFrame {
+                        image: old.image.clone(),
+                        state: FrameState {
+                            t_cw: old.t_wc.inverse(),
+                            a: old.a,
+                            b: old.b,
+                        },
+                    });
+                    while bundle.len() > self.cfg.bundle_window {
+                        bundle.pop_front();
+                    }
+                }
                 old.keep_immature(&self.cfg);
                 window.push_back(*old);
                 while window.len() > self.cfg.window {
@@ -427,8 +476,38 @@ impl DirectMonoTracker {
                 last = Isometry3::identity();
             }
         }
-        self.state = State::Tracking { kf, last, window };
-        Self::located(&fit, &(t_wc * fit.pose), keyframe, start)
+        self.coast.motion.update(t_wc);
+        self.state = State::Tracking {
+            kf,
+            last,
+            window,
+            bundle,
+            scale_broken,
+        };
+        let mut estimate = Self::located(&fit, &(t_wc * fit.pose), keyframe, start);
+        if let Some(at) = scale_broken {
+            estimate = estimate.flagged(
+                Reason::Inconsistent,
+                format!("the map's scale is suspect since a motion jump at frame {at}"),
+            );
+        }
+        estimate
+    }
+
+    /// Whether `t_wc` jumps away from the constant-velocity prediction `predicted` (module
+    /// documentation, step 5), for a keyframe at `median_depth`.
+    fn motion_jump(
+        &self,
+        t_wc: &Isometry3<f64>,
+        predicted: &Isometry3<f64>,
+        median_depth: f64,
+    ) -> bool {
+        let motion = &self.coast.motion;
+        let Some(step) = motion.step_length().filter(|_| motion.has_velocity()) else {
+            return false;
+        };
+        let gap = (t_wc.translation.vector - predicted.translation.vector).norm();
+        step >= self.cfg.min_judged_step * median_depth && gap > self.cfg.max_motion_jump * step
     }
 }
 
@@ -473,9 +552,19 @@ impl Tracker for DirectMonoTracker {
                     predicted,
                     start,
                 ),
-                State::Tracking { kf, last, window } => {
-                    self.track_keyframe(kf, (last, window), image, predicted, start)
-                }
+                State::Tracking {
+                    kf,
+                    last,
+                    window,
+                    bundle,
+                    scale_broken,
+                } => self.track_keyframe(
+                    kf,
+                    (last, window, bundle, scale_broken),
+                    image,
+                    predicted,
+                    start,
+                ),
             },
         };
         if self.origin {

@@ -6,6 +6,8 @@
 //! - [`filter`]: the Gaussian inverse-depth filter of a point;
 //! - [`epipolar`]: the search of a reference pixel along its epipolar segment in a later image
 //!   and the inverse depth it measures, with the geometric variance;
+//! - [`bundle`]: the windowed photometric bundle adjustment of keyframe poses, brightness and
+//!   inverse depths;
 //! - [`points`]: keyframe points (pixel, gradient, filter), their refinement in each tracked
 //!   frame, activation, and their transfer into the next keyframe.
 //!
@@ -13,11 +15,15 @@
 //! ([`crate::Se3Reference::from_inverse_depths`]); the sequential tracker is the facade's
 //! `odometry::direct_mono`.
 
+pub mod bundle;
 pub mod epipolar;
 pub mod filter;
 pub mod points;
 pub mod select;
 
+pub use bundle::{
+    photometric_bundle, BundleConfig, BundleFrame, BundlePoint, BundleResult, FrameState,
+};
 pub use epipolar::{EpipolarConfig, EpipolarError, EpipolarMatch, EpipolarPair};
 pub use filter::DepthFilter;
 pub use points::{active_points, refine_points, transfer_points, DepthRules, MonoPoint};

@@ -7,12 +7,12 @@ use vofront_image::Image;
 
 use super::*;
 
-const W: usize = 160;
-const H: usize = 120;
+pub(crate) const W: usize = 160;
+pub(crate) const H: usize = 120;
 /// The plane `Z = DEPTH` of the reference camera.
-const DEPTH: f64 = 2.0;
+pub(crate) const DEPTH: f64 = 2.0;
 
-fn pinhole() -> Pinhole {
+pub(crate) fn pinhole() -> Pinhole {
     Pinhole::new(300.0, 300.0, 79.5, 59.5).unwrap()
 }
 
@@ -24,7 +24,7 @@ fn texture(x: f64, y: f64) -> f64 {
 }
 
 /// The plane seen by a camera at `T_cur_ref`: each pixel's ray cut with `Z = DEPTH`.
-fn render(t_cur_ref: &Isometry3<f64>) -> Image<f32> {
+pub(crate) fn render(t_cur_ref: &Isometry3<f64>) -> Image<f32> {
     let k = pinhole();
     let t_ref_cur = t_cur_ref.inverse();
     let c = t_ref_cur.translation.vector;
@@ -41,7 +41,7 @@ fn render(t_cur_ref: &Isometry3<f64>) -> Image<f32> {
 }
 
 /// A camera moving sideways and forward with a small turn, `i` steps from the reference.
-fn pose(i: usize) -> Isometry3<f64> {
+pub(crate) fn pose(i: usize) -> Isometry3<f64> {
     let s = i as f64;
     Isometry3::new(
         Vector3::new(-0.03 * s, 0.01 * s, -0.02 * s),

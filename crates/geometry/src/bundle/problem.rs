@@ -200,7 +200,12 @@ impl LmProblem for Reprojection<'_> {
                 (u, g)
             })
             .unzip();
-        SchurSystem { u, gc, points }
+        SchurSystem {
+            u,
+            gc,
+            points,
+            pairs: Vec::new(),
+        }
     }
 
     fn retract(&self, state: &BundleState, step: &BundleStep) -> BundleState {

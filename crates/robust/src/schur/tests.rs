@@ -8,10 +8,13 @@ fn f(k: usize) -> f64 {
 }
 
 /// `A = I + sum J_o^T J_o` for two random rows per observation (every point seen by every one
-/// of `k` poses): symmetric positive definite with the bundle sparsity; and a gradient `g`.
+/// of `k` poses; with `hosted`, each row also depends on the next pose, as a photometric
+/// residual on its point's host frame): symmetric positive definite with the bundle sparsity;
+/// and a gradient `g`.
 fn dense_problem<const P: usize, const Q: usize>(
     k: usize,
     m: usize,
+    hosted: bool,
 ) -> (DMatrix<f64>, DVector<f64>) {
     let n = P * k + Q * m;
     let mut a = DMatrix::<f64>::identity(n, n);
@@ -23,6 +26,13 @@ fn dense_problem<const P: usize, const Q: usize>(
                 for c in 0..P {
                     row[P * i + c] = f(idx);
                     idx += 1;
+                }
+                if hosted && k > 1 {
+                    let host = (i + 1) % k;
+                    for c in 0..P {
+                        row[P * host + c] = f(idx);
+                        idx += 1;
+                    }
                 }
                 for c in 0..Q {
                     row[P * k + Q * j + c] = f(idx);
@@ -63,13 +73,30 @@ fn blocks<const P: usize, const Q: usize>(
                     .collect(),
             })
             .collect(),
+        pairs: (0..k)
+            .flat_map(|i| (i + 1..k).map(move |l| (i, l)))
+            .map(|(i, l)| PosePair {
+                // Given in both orders, to check that either is read right.
+                i: if (i + l) % 2 == 0 { i } else { l },
+                k: if (i + l) % 2 == 0 { l } else { i },
+                u: if (i + l) % 2 == 0 {
+                    a.fixed_view::<P, P>(P * i, P * l).into_owned()
+                } else {
+                    a.fixed_view::<P, P>(P * l, P * i).into_owned()
+                },
+            })
+            .collect(),
     }
 }
 
 /// Solves the block system and the dense `(A + lambda diag(A)) d = -g`, compares the steps and
 /// `d^T A d`; returns the block step.
-fn check_against_dense<const P: usize, const Q: usize>(k: usize, m: usize) -> SchurStep<P, Q> {
-    let (a, g) = dense_problem::<P, Q>(k, m);
+fn check_against_dense<const P: usize, const Q: usize>(
+    k: usize,
+    m: usize,
+    hosted: bool,
+) -> SchurStep<P, Q> {
+    let (a, g) = dense_problem::<P, Q>(k, m, hosted);
     let system = blocks::<P, Q>(&a, &g, k, m);
     let lambda = 0.1;
     let step = system.solve(lambda, Damping::Diagonal, 1e10).unwrap();
@@ -99,20 +126,30 @@ fn check_against_dense<const P: usize, const Q: usize>(k: usize, m: usize) -> Sc
 #[test]
 fn pose_and_point_blocks_match_the_dense_solve() {
     // Two free 6-dof poses, three 3-dof points, every point seen by both poses.
-    check_against_dense::<6, 3>(2, 3);
+    check_against_dense::<6, 3>(2, 3, false);
 }
 
 #[test]
 fn frames_with_brightness_and_inverse_depths_match_the_dense_solve() {
     // Three free 8-dof frames (pose, a, b), five 1-dof inverse depths: diagonal elimination.
-    let step = check_against_dense::<8, 1>(3, 5);
+    let step = check_against_dense::<8, 1>(3, 5, false);
     assert_eq!((step.poses.len(), step.points.len()), (3, 5));
+}
+
+#[test]
+fn residuals_on_two_frames_match_the_dense_solve() {
+    // Four free frames, each residual also on its point's host (the next frame): the pose
+    // pairs fill U's off-diagonal blocks.
+    let (a, _) = dense_problem::<8, 1>(4, 6, true);
+    assert!(a.fixed_view::<8, 8>(0, 8).norm() > 0.0);
+    let step = check_against_dense::<8, 1>(4, 6, true);
+    assert_eq!((step.poses.len(), step.points.len()), (4, 6));
 }
 
 #[test]
 fn a_point_without_observations_keeps_a_zero_step() {
     let (k, m) = (3, 5);
-    let (a, g) = dense_problem::<8, 1>(k, m);
+    let (a, g) = dense_problem::<8, 1>(k, m, false);
     let mut system = blocks::<8, 1>(&a, &g, k, m);
     let reference = system.solve(0.1, Damping::Diagonal, 1e10).unwrap();
     // V = 0 stays 0 under Marquardt damping: not positive definite, so the point is held.
@@ -127,7 +164,7 @@ fn a_point_without_observations_keeps_a_zero_step() {
 
 #[test]
 fn non_finite_blocks_are_an_error() {
-    let (a, g) = dense_problem::<8, 1>(2, 2);
+    let (a, g) = dense_problem::<8, 1>(2, 2, false);
     let mut system = blocks::<8, 1>(&a, &g, 2, 2);
     system.points[1].gp[0] = f64::NAN;
     assert_eq!(
