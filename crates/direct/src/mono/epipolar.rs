@@ -146,6 +146,32 @@ fn pattern(img: &Image<f32>, x: f32, y: f32, min_norm: f32) -> Option<[f32; 8]> 
     Some(v)
 }
 
+/// The zero-mean unit-norm SSD between the pattern of `img` around `(x, y)` and `reference`
+/// (zero-mean, unit-norm): `2 - 2 corr`, with `corr = sum p_i r_i / sqrt(sum p_i^2 - (sum
+/// p_i)^2 / 8)` (the mean drops out of the product since `sum r_i = 0`); 2 (uncorrelated)
+/// for a flat or non-finite sample, `None` outside the image.
+fn pattern_cost(img: &Image<f32>, x: f32, y: f32, reference: &[f32; 8]) -> Option<f32> {
+    let mut v = [0f32; 8];
+    for (o, &(dx, dy)) in v.iter_mut().zip(&PATTERN) {
+        *o = img.sample(x + dx, y + dy)?;
+    }
+    // Relative to the centre sample (the cost is offset-invariant), so that the sums of
+    // squares do not cancel.
+    let pivot = v[4];
+    let (mut sum, mut squares, mut dot) = (0f32, 0f32, 0f32);
+    for (v, r) in v.iter().zip(reference) {
+        let v = v - pivot;
+        sum += v;
+        squares += v * v;
+        dot += v * r;
+    }
+    let norm2 = squares - sum * sum / 8.0;
+    if !(dot.is_finite() && norm2.is_finite() && norm2 >= 1e-6) {
+        return Some(2.0);
+    }
+    Some((2.0 - 2.0 * dot / norm2.sqrt()).max(0.0))
+}
+
 impl EpipolarPair<'_> {
     /// Searches reference pixel `pixel` (gradient `gradient`, grey levels per pixel) along the
     /// epipolar segment of inverse depths `range` (module documentation).
@@ -206,13 +232,7 @@ impl EpipolarPair<'_> {
                 if !(x >= cfg.margin_px && y >= cfg.margin_px && x <= xmax && y <= ymax) {
                     return f32::INFINITY;
                 }
-                // A flat sample is uncorrelated with the pattern: cost 2.
-                pattern(self.current, x, y, 1e-3).map_or(2.0, |p| {
-                    p.iter()
-                        .zip(&reference)
-                        .map(|(a, b)| (a - b) * (a - b))
-                        .sum()
-                })
+                pattern_cost(self.current, x, y, &reference).unwrap_or(2.0)
             })
             .collect();
         let (best, &cost) = costs
@@ -281,5 +301,46 @@ impl EpipolarPair<'_> {
             variance,
             cost,
         })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use vofront_image::Image;
+
+    use super::{pattern, pattern_cost};
+
+    /// The correlation form of the cost equals the SSD of the two normalised patterns, on
+    /// bright, dark and low-contrast texture, and a flat sample costs 2.
+    #[test]
+    fn the_correlation_cost_is_the_ssd_of_normalised_patterns() {
+        let (w, h) = (40, 30);
+        for (offset, contrast) in [(200.0f32, 30.0f32), (10.0, 5.0), (128.0, 0.5)] {
+            let data = (0..w * h)
+                .map(|i| {
+                    let (x, y) = ((i % w) as f32, (i / w) as f32);
+                    offset + contrast * ((0.7 * x).sin() + (0.45 * y + 0.3 * x).cos())
+                })
+                .collect();
+            let img = Image::new(w, h, data).unwrap();
+            let reference = pattern(&img, 12.0, 11.0, 1e-3).unwrap();
+            for (x, y) in [(12.0, 11.0), (20.3, 14.6), (7.5, 20.25)] {
+                let p = pattern(&img, x, y, 1e-3).unwrap();
+                let ssd: f32 = p
+                    .iter()
+                    .zip(&reference)
+                    .map(|(a, b)| (a - b) * (a - b))
+                    .sum();
+                let cost = pattern_cost(&img, x, y, &reference).unwrap();
+                assert!(
+                    (cost - ssd).abs() < 1e-3,
+                    "{offset} {contrast} ({x}, {y}): {cost} vs {ssd}"
+                );
+            }
+            assert!(pattern_cost(&img, 0.5, 0.5, &reference).is_none());
+        }
+        let flat = Image::filled(w, h, 90.0f32);
+        let reference = [0.5, -0.5, 0.0, 0.0, 0.0, 0.0, 0.5, -0.5];
+        assert_eq!(pattern_cost(&flat, 10.0, 10.0, &reference), Some(2.0));
     }
 }

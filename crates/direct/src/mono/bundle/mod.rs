@@ -45,7 +45,7 @@ mod problem;
 use nalgebra::{Isometry3, Vector2, Vector3};
 use vofront_core::Pinhole;
 use vofront_image::Image;
-use vofront_robust::{levenberg_marquardt, Convergence, Damping, LmConfig, LmError};
+use vofront_robust::{levenberg_marquardt, Convergence, Damping, LmConfig, LmError, LmProblem};
 
 use super::epipolar::PATTERN;
 use crate::error::DirectError;
@@ -242,7 +242,8 @@ pub fn photometric_bundle(
         })
         .collect();
     let observations = problem.admit(&state, candidates);
-    let before = problem.rmse_at(&state);
+    // `admit` leaves the evaluation at the start.
+    let before = problem.rmse();
     problem.hold_unseen_frames();
     let lm = LmConfig {
         max_iterations: cfg.max_iterations,
@@ -264,10 +265,11 @@ pub fn photometric_bundle(
             }
         }
     };
-    let point_rmse = problem.point_rmse(&state);
+    problem.evaluate(&state);
+    let point_rmse = problem.point_rmse();
     let outlier = point_rmse.iter().map(|r| *r > cfg.max_point_rmse).collect();
     Ok(BundleResult {
-        rmse: (before, problem.rmse_at(&state)),
+        rmse: (before, problem.rmse()),
         frames: state.frames,
         rhos: state.rhos,
         point_rmse,

@@ -222,9 +222,9 @@ impl<'a> Photometric<'a> {
         self.free.iter().flatten().count()
     }
 
-    /// RMS residual over the valid pattern pixels of every observation at `state`.
-    pub fn rmse_at(&mut self, state: &BundleState) -> f64 {
-        self.evaluate(state);
+    /// RMS residual over the valid pattern pixels of every observation, at the current
+    /// evaluation.
+    pub fn rmse(&self) -> f64 {
         let (sum, n) = self
             .rows
             .iter()
@@ -234,10 +234,9 @@ impl<'a> Photometric<'a> {
         (sum / n.max(1) as f64).sqrt()
     }
 
-    /// Per point, the RMS residual over the valid pattern pixels of its observations at
-    /// `state` (NaN without any).
-    pub fn point_rmse(&mut self, state: &BundleState) -> Vec<f64> {
-        self.evaluate(state);
+    /// Per point, the RMS residual over the valid pattern pixels of its observations at the
+    /// current evaluation (NaN without any).
+    pub fn point_rmse(&self) -> Vec<f64> {
         self.by_point
             .iter()
             .map(|list| {
