@@ -23,11 +23,12 @@
 //!    window (`bundle`): the outgoing keyframe's active points, its pose and brightness, those
 //!    of the `bundle_window` keyframes before it and of the new one are adjusted jointly by
 //!    the photometric bundle ([`vofront_direct::mono::photometric_bundle`], the oldest two
-//!    frames holding the gauge), the points it finds to be outliers dropped. The new keyframe,
-//!    at its refined pose, takes the active points carried in (moved, projected, their filters transferred) and immature points in the
-//!    blocks they leave free. The previous keyframe keeps its immature points in a window of
-//!    `window` keyframes: they are still searched in each frame (from `T_cur_kf = T_wc^-1
-//!    T_w_kf`), and each that converges is carried into the newest keyframe (SVO's seeds).
+//!    frames holding the gauge), the points it finds to be outliers dropped. The new
+//!    keyframe, at its refined pose, takes the active points carried in (moved, projected,
+//!    their filters transferred) and immature points in the blocks they leave free. The
+//!    previous keyframe keeps its immature points in a window of `window` keyframes: they are
+//!    still searched in each frame (from `T_cur_kf = T_wc^-1 T_w_kf`), and each that
+//!    converges is carried into the newest keyframe (SVO's seeds).
 //! 5. A frame whose position jumps away from the constant-velocity prediction (by more than
 //!    `max_motion_jump` of the recent step length, when that step is at least
 //!    `min_judged_step` of the median depth) has broken the map's scale: it and every later
