@@ -421,10 +421,6 @@ impl DirectMonoTracker {
             }
         };
         let mut t_wc = kf.t_wc * fit.pose.inverse();
-        if scale_broken.is_none() && self.motion_jump(&t_wc, &predicted, kf.median_depth(&self.cfg))
-        {
-            scale_broken = Some(self.late.frame());
-        }
         let first_residual = *kf.first_residual.get_or_insert(fit.rmse);
         let k = self.k();
         let t_cw = t_wc.inverse();
@@ -440,6 +436,9 @@ impl DirectMonoTracker {
             residual: fit.rmse,
             first_residual,
         };
+        if scale_broken.is_none() && self.motion_jump(&t_wc, &predicted, view.median_depth) {
+            scale_broken = Some(self.late.frame());
+        }
         let mut keyframe = false;
         let mut last = fit.pose;
         if refined.is_err() || self.cfg.keyframe.needs_keyframe(&view) {

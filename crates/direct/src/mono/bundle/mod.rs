@@ -244,7 +244,6 @@ pub fn photometric_bundle(
     let observations = problem.admit(&state, candidates);
     // `admit` leaves the evaluation at the start.
     let before = problem.rmse();
-    problem.hold_unseen_frames();
     let lm = LmConfig {
         max_iterations: cfg.max_iterations,
         damping: Damping::Diagonal,

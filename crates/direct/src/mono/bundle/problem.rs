@@ -56,6 +56,14 @@ impl Row {
     }
 }
 
+/// Root mean square of the finite values; `None` without any.
+fn rms<'r>(values: impl Iterator<Item = &'r f64>) -> Option<f64> {
+    let (sum, n) = values
+        .filter(|r| r.is_finite())
+        .fold((0.0, 0usize), |(s, n), r| (s + r * r, n + 1));
+    (n > 0).then(|| (sum / n as f64).sqrt())
+}
+
 /// The window's photometric problem.
 pub(super) struct Photometric<'a> {
     pinhole: &'a Pinhole,
@@ -81,7 +89,7 @@ pub(super) struct Photometric<'a> {
 }
 
 impl<'a> Photometric<'a> {
-    /// A problem without observations yet ([`Self::admit`]); the first `cfg.fixed` frames held.
+    /// A problem without observations yet ([`Self::admit`]).
     pub fn new(
         pinhole: &'a Pinhole,
         frames: &'a [BundleFrame<'a>],
@@ -174,7 +182,9 @@ impl<'a> Photometric<'a> {
     }
 
     /// Keeps the `candidates` whose whole pattern is inside the target with an RMS residual
-    /// of at most `max_start_rmse` at `state`; returns how many.
+    /// of at most `max_start_rmse` at `state` (the evaluation is then at `state`), and holds
+    /// the first `fixed` frames and those no kept observation involves; returns how many were
+    /// kept.
     pub fn admit(&mut self, state: &BundleState, candidates: Vec<Observation>) -> usize {
         let rows: Vec<Row> = candidates.par_iter().map(|o| self.row(state, o)).collect();
         let limit = self.cfg.max_start_rmse;
@@ -194,11 +204,12 @@ impl<'a> Photometric<'a> {
         }
         self.observations = observations;
         self.rows = rows;
+        self.number_free_frames();
         self.observations.len()
     }
 
     /// Holds the first `fixed` frames and those no observation involves; numbers the rest.
-    pub fn hold_unseen_frames(&mut self) {
+    fn number_free_frames(&mut self) {
         let mut seen = vec![false; self.frames.len()];
         for o in &self.observations {
             seen[o.target] = true;
@@ -218,20 +229,14 @@ impl<'a> Photometric<'a> {
     }
 
     /// Free frames.
-    pub fn free_frames(&self) -> usize {
+    fn free_frames(&self) -> usize {
         self.free.iter().flatten().count()
     }
 
     /// RMS residual over the valid pattern pixels of every observation, at the current
     /// evaluation.
     pub fn rmse(&self) -> f64 {
-        let (sum, n) = self
-            .rows
-            .iter()
-            .flat_map(|r| r.residual.iter())
-            .filter(|r| r.is_finite())
-            .fold((0.0, 0usize), |(s, n), r| (s + r * r, n + 1));
-        (sum / n.max(1) as f64).sqrt()
+        rms(self.rows.iter().flat_map(|r| r.residual.iter())).unwrap_or(0.0)
     }
 
     /// Per point, the RMS residual over the valid pattern pixels of its observations at the
@@ -240,16 +245,7 @@ impl<'a> Photometric<'a> {
         self.by_point
             .iter()
             .map(|list| {
-                let (sum, n) = list
-                    .iter()
-                    .flat_map(|&o| self.rows[o].residual.iter())
-                    .filter(|r| r.is_finite())
-                    .fold((0.0, 0usize), |(s, n), r| (s + r * r, n + 1));
-                if n == 0 {
-                    f64::NAN
-                } else {
-                    (sum / n as f64).sqrt()
-                }
+                rms(list.iter().flat_map(|&o| self.rows[o].residual.iter())).unwrap_or(f64::NAN)
             })
             .collect()
     }
@@ -282,11 +278,12 @@ impl LmProblem for Photometric<'_> {
                 0.5 * (ra * ra + rb * rb)
             })
             .sum();
-        let rows: Vec<Row> = self
-            .observations
-            .par_iter()
-            .map(|o| self.row(state, o))
-            .collect();
+        // Written in place: no allocation per iteration.
+        let mut rows = std::mem::take(&mut self.rows);
+        rows.resize(self.observations.len(), Row::invalid());
+        rows.par_iter_mut()
+            .zip(self.observations.par_iter())
+            .for_each(|(row, o)| *row = self.row(state, o));
         self.rows = rows;
         self.rows
             .iter()
@@ -317,6 +314,8 @@ impl LmProblem for Photometric<'_> {
     fn linearize(&mut self) -> SchurSystem<8, 1> {
         let free = &self.free;
         let n_free = self.free_frames();
+        let weighted: Vec<(Vector8, Vector8)> =
+            self.rows.par_iter().map(|row| self.weighted(row)).collect();
         let points = self
             .by_point
             .par_iter()
@@ -326,11 +325,10 @@ impl LmProblem for Photometric<'_> {
                 let host = free[self.points[j].host];
                 let mut host_w = SVector::<f64, 8>::zeros();
                 for &o in list {
-                    let row = &self.rows[o];
-                    let (w, r) = self.weighted(row);
-                    let wr = row.rho.component_mul(&w);
+                    let (row, (w, r)) = (&self.rows[o], &weighted[o]);
+                    let wr = row.rho.component_mul(w);
                     block.v[(0, 0)] += wr.dot(&row.rho);
-                    block.gp[0] += wr.dot(&r);
+                    block.gp[0] += wr.dot(r);
                     host_w += row.host.transpose() * wr;
                     if let Some(pose) = free[self.observations[o].target] {
                         block.couplings.push(Coupling {
@@ -348,13 +346,15 @@ impl LmProblem for Photometric<'_> {
         let mut u = vec![Matrix8::zeros(); n_free];
         let mut gc = vec![Vector8::zeros(); n_free];
         let mut pairs = vec![Matrix8::zeros(); n_free * n_free];
-        for (o, row) in self.observations.iter().zip(&self.rows) {
+        for ((o, row), (w, r)) in self.observations.iter().zip(&self.rows).zip(&weighted) {
             // Rows scaled by sqrt(w): J^T W J = Js^T Js, J^T W r = Js^T rs.
-            let (w, r) = self.weighted(row);
             let sw = w.map(f64::sqrt);
             let rs = r.component_mul(&sw);
-            let scale = Matrix8::from_diagonal(&sw);
-            let (jh, jt) = (scale * row.host, scale * row.target);
+            let (mut jh, mut jt) = (row.host, row.target);
+            for i in 0..N {
+                jh.row_mut(i).scale_mut(sw[i]);
+                jt.row_mut(i).scale_mut(sw[i]);
+            }
             let h = free[self.points[o.point].host];
             let t = free[o.target];
             if let Some(h) = h {
