@@ -36,7 +36,17 @@ pub(super) fn frame_state(kf: &MonoKeyframe, t_wc: &Isometry3<f64>, fit: &Se3Res
     }
 }
 
-/// Refines `older`, `kf` and the frame `current` (state `state`) with `kf`'s active points;
+/// At most `most` of `items`, evenly spread over their order (all of them when they are few).
+fn even_share(items: Vec<usize>, most: usize) -> Vec<usize> {
+    let n = items.len();
+    if n <= most {
+        return items;
+    }
+    (0..most).map(|i| items[i * n / most]).collect()
+}
+
+/// Refines `older`, `kf` and the frame `current` (state `state`) with `kf`'s active points
+/// (at most `bundle_points` of them, [`even_share`]);
 /// writes the refined states into `older` and `kf`, the refined inverse depths into `kf`'s
 /// points (dropping the outliers), and returns the current frame's refined state.
 pub(super) fn refine_window(
@@ -72,6 +82,7 @@ pub(super) fn refine_window(
     let active: Vec<usize> = (0..kf.points.len())
         .filter(|&j| cfg.depth.is_active(&kf.points[j]))
         .collect();
+    let active = even_share(active, cfg.bundle_points);
     let points: Vec<BundlePoint> = active
         .iter()
         .map(|&j| BundlePoint {
@@ -95,4 +106,18 @@ pub(super) fn refine_window(
     let mut keep = outlier.iter().map(|o| !o);
     kf.points.retain(|_| keep.next().unwrap_or(true));
     Ok(fit.frames[host + 1])
+}
+
+#[cfg(test)]
+mod tests {
+    use super::even_share;
+
+    #[test]
+    fn an_even_share_spans_the_whole_order() {
+        let items: Vec<usize> = (0..10).collect();
+        assert_eq!(even_share(items.clone(), 20), items);
+        assert_eq!(even_share(items.clone(), 5), vec![0, 2, 4, 6, 8]);
+        assert_eq!(even_share(items.clone(), 3), vec![0, 3, 6]);
+        assert!(even_share(items, 0).is_empty());
+    }
 }

@@ -44,6 +44,10 @@ pub struct DirectMonoConfig {
     pub bundle_window: usize,
     /// The windowed photometric bundle adjustment (its first `fixed` frames hold the gauge).
     pub bundle: BundleConfig,
+    /// Most points the bundle refines: above it, an even share of the outgoing keyframe's
+    /// active points (every k-th in selection order, so spread as the selection is) takes
+    /// part; the others keep their filtered depths. The bundle's time grows with its points.
+    pub bundle_points: usize,
     /// When to take a new keyframe (translation relative to the median depth, rotation,
     /// tracked ratio, residual growth).
     pub keyframe: KeyframePolicy,
@@ -91,9 +95,17 @@ impl Default for DirectMonoConfig {
             prior_sigma: 3.0,
             min_active_points: 100,
             rebuild_growth: 1.1,
-            window: 0,
+            // Immature points of the previous keyframe keep converging: in a turn keyframes come
+            // every second frame, too soon for a point to be measured three times in one.
+            window: 1,
             bundle_window: 4,
-            bundle: BundleConfig::default(),
+            // Five iterations: the cost falls little after them, and the bundle runs at every
+            // keyframe on the tracking thread.
+            bundle: BundleConfig {
+                max_iterations: 5,
+                ..BundleConfig::default()
+            },
+            bundle_points: 800,
             keyframe: KeyframePolicy {
                 max_relative_translation: 0.15,
                 max_rotation_deg: 5.0,

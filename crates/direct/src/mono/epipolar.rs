@@ -25,15 +25,15 @@ use vofront_core::Pinhole;
 use vofront_image::Image;
 
 /// Offsets of the compared pattern around a pixel (DSO's 8-pixel pattern), pixels.
-pub const PATTERN: [(f32, f32); 8] = [
-    (0.0, -2.0),
-    (-1.0, -1.0),
-    (1.0, -1.0),
-    (-2.0, 0.0),
-    (0.0, 0.0),
-    (2.0, 0.0),
-    (-1.0, 1.0),
-    (0.0, 2.0),
+pub const PATTERN: [(i32, i32); 8] = [
+    (0, -2),
+    (-1, -1),
+    (1, -1),
+    (-2, 0),
+    (0, 0),
+    (2, 0),
+    (-1, 1),
+    (0, 2),
 ];
 
 /// Settings of [`EpipolarPair::search`].
@@ -132,9 +132,9 @@ pub struct EpipolarPair<'a> {
 /// The zero-mean, unit-norm pattern of `img` around `(x, y)`; `None` outside the image or
 /// when flat (norm under `min_norm` grey levels).
 fn pattern(img: &Image<f32>, x: f32, y: f32, min_norm: f32) -> Option<[f32; 8]> {
-    let mut v = [0f32; 8];
-    for (o, &(dx, dy)) in v.iter_mut().zip(&PATTERN) {
-        *o = img.sample(x + dx, y + dy).filter(|s| s.is_finite())?;
+    let mut v = img.sample_pattern(x, y, &PATTERN)?;
+    if !v.iter().all(|s| s.is_finite()) {
+        return None;
     }
     let mean = v.iter().sum::<f32>() / 8.0;
     v.iter_mut().for_each(|s| *s -= mean);
@@ -151,10 +151,7 @@ fn pattern(img: &Image<f32>, x: f32, y: f32, min_norm: f32) -> Option<[f32; 8]> 
 /// p_i)^2 / 8)` (the mean drops out of the product since `sum r_i = 0`); 2 (uncorrelated)
 /// for a flat or non-finite sample, `None` outside the image.
 fn pattern_cost(img: &Image<f32>, x: f32, y: f32, reference: &[f32; 8]) -> Option<f32> {
-    let mut v = [0f32; 8];
-    for (o, &(dx, dy)) in v.iter_mut().zip(&PATTERN) {
-        *o = img.sample(x + dx, y + dy)?;
-    }
+    let v = img.sample_pattern(x, y, &PATTERN)?;
     // Relative to the centre sample (the cost is offset-invariant), so that the sums of
     // squares do not cancel.
     let pivot = v[4];

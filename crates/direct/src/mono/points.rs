@@ -48,7 +48,9 @@ pub struct DepthRules {
     /// See `converged_relative`, 1 / map units.
     pub converged_absolute: f64,
     /// Fewest measurements fused before a point may converge (one wrong match alone cannot
-    /// activate it).
+    /// activate it, nor two agreeing ones from nearly the same view: with two, KITTI's
+    /// highway turn, at 2.6 degrees and 1 m per frame, activated points whose wrong depths
+    /// shrank the map's scale in six of eight starts).
     pub min_updates: u32,
     /// A point with more outliers than this, and more outliers than updates, is dropped.
     pub max_outliers: u32,
@@ -62,7 +64,7 @@ impl Default for DepthRules {
             range_sigmas: 2.5,
             converged_relative: 0.08,
             converged_absolute: 0.005,
-            min_updates: 2,
+            min_updates: 3,
             max_outliers: 3,
         }
     }

@@ -40,6 +40,7 @@
 //! residual over its observations says whether it is an outlier (over `max_point_rmse`); a
 //! point without observations is not judged.
 
+mod blocks;
 mod problem;
 
 use nalgebra::{Isometry3, Vector2, Vector3};
@@ -151,11 +152,17 @@ fn host_pattern(
     k: &Pinhole,
     pixel: Vector2<f32>,
 ) -> Option<([Vector3<f64>; 8], [f64; 8])> {
+    let samples = image.sample_pattern(pixel.x, pixel.y, &PATTERN)?;
     let mut bearings = [Vector3::zeros(); 8];
     let mut grey = [0.0; 8];
-    for ((b, g), &(dx, dy)) in bearings.iter_mut().zip(grey.iter_mut()).zip(&PATTERN) {
-        let (x, y) = (pixel.x + dx, pixel.y + dy);
-        *g = f64::from(image.sample(x, y)?);
+    for (((b, g), &(dx, dy)), &s) in bearings
+        .iter_mut()
+        .zip(grey.iter_mut())
+        .zip(&PATTERN)
+        .zip(&samples)
+    {
+        let (x, y) = (pixel.x + dx as f32, pixel.y + dy as f32);
+        *g = f64::from(s);
         *b = Vector3::new(
             (f64::from(x) - k.cx) / k.fx,
             (f64::from(y) - k.cy) / k.fy,

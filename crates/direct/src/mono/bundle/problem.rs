@@ -10,13 +10,14 @@ use vofront_robust::{
     Coupling, LmProblem, Loss, PointBlock, PosePair, RobustLoss, SchurStep, SchurSystem,
 };
 
+use super::blocks::{PoseBlocks, OBSERVATIONS_PER_CHUNK};
 use super::{BundleConfig, BundleFrame, BundlePoint, FrameState};
 use crate::plane::sample_with_gradient;
 
 /// Pattern pixels per observation.
-const N: usize = 8;
-type Vector8 = SVector<f64, N>;
-type Matrix8 = SMatrix<f64, N, N>;
+pub(super) const N: usize = 8;
+pub(super) type Vector8 = SVector<f64, N>;
+pub(super) type Matrix8 = SMatrix<f64, N, N>;
 
 /// The host's pattern: bearings `K^-1 (x_k, 1)` and grey levels.
 pub(super) type HostPattern = Option<([Vector3<f64>; N], [f64; N])>;
@@ -343,32 +344,30 @@ impl LmProblem for Photometric<'_> {
                 block
             })
             .collect();
-        let mut u = vec![Matrix8::zeros(); n_free];
-        let mut gc = vec![Vector8::zeros(); n_free];
-        let mut pairs = vec![Matrix8::zeros(); n_free * n_free];
-        for ((o, row), (w, r)) in self.observations.iter().zip(&self.rows).zip(&weighted) {
-            // Rows scaled by sqrt(w): J^T W J = Js^T Js, J^T W r = Js^T rs.
-            let sw = w.map(f64::sqrt);
-            let rs = r.component_mul(&sw);
-            let (mut jh, mut jt) = (row.host, row.target);
-            for i in 0..N {
-                jh.row_mut(i).scale_mut(sw[i]);
-                jt.row_mut(i).scale_mut(sw[i]);
-            }
-            let h = free[self.points[o.point].host];
-            let t = free[o.target];
-            if let Some(h) = h {
-                u[h] += jh.tr_mul(&jh);
-                gc[h] += jh.tr_mul(&rs);
-            }
-            if let Some(t) = t {
-                u[t] += jt.tr_mul(&jt);
-                gc[t] += jt.tr_mul(&rs);
-            }
-            if let (Some(h), Some(t)) = (h, t) {
-                pairs[h * n_free + t] += jh.tr_mul(&jt);
-            }
-        }
+        // Fixed chunks summed in order: the same sums whatever thread ran which chunk.
+        let items: Vec<_> = self
+            .observations
+            .iter()
+            .zip(&self.rows)
+            .zip(&weighted)
+            .collect();
+        let PoseBlocks {
+            mut u,
+            mut gc,
+            pairs,
+        } = items
+            .par_chunks(OBSERVATIONS_PER_CHUNK)
+            .map(|chunk| {
+                let mut blocks = PoseBlocks::zeros(n_free);
+                for ((o, row), w_r) in chunk {
+                    let h = free[self.points[o.point].host];
+                    blocks.add((&row.host, &row.target), w_r, (h, free[o.target]));
+                }
+                blocks
+            })
+            .collect::<Vec<_>>()
+            .into_iter()
+            .fold(PoseBlocks::zeros(n_free), PoseBlocks::merged);
         for (i, f) in free.iter().enumerate() {
             if let Some(f) = f {
                 let (ra, rb) = self.prior_residual(i);
