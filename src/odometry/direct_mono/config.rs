@@ -39,6 +39,11 @@ pub struct DirectMonoConfig {
     pub rebuild_growth: f64,
     /// Previous keyframes whose immature points are still refined and handed over.
     pub window: usize,
+    /// A keyframe also stays in that window, beyond `window`, while it was made fewer than
+    /// this many frames ago: its immature points are then searched in at least this many
+    /// frames even when every frame is a keyframe (a fast turn, a low frame rate), so that they
+    /// can gather `depth.min_updates` measurements.
+    pub seed_frames: usize,
     /// Keyframes before the outgoing one that take part in the photometric bundle adjustment
     /// run at each new keyframe (`bundle`); 0 runs none.
     pub bundle_window: usize,
@@ -98,6 +103,7 @@ impl Default for DirectMonoConfig {
             // Immature points of the previous keyframe keep converging: in a turn keyframes come
             // every second frame, too soon for a point to be measured three times in one.
             window: 1,
+            seed_frames: 3,
             bundle_window: 4,
             // Five iterations: the cost falls little after them, and the bundle runs at every
             // keyframe on the tracking thread.

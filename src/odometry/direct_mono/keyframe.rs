@@ -2,6 +2,8 @@
 //! from the previous keyframe, immature ones selected in free blocks), and the sparse SE(3)
 //! reference of its active points that frames are aligned to.
 
+use std::collections::VecDeque;
+
 use nalgebra::{Isometry3, Vector2};
 use vofront_core::Pinhole;
 use vofront_direct::mono::{
@@ -31,6 +33,8 @@ pub(super) struct MonoKeyframe {
     pub built_with: usize,
     /// RMSE of the first frame aligned to it.
     pub first_residual: Option<f64>,
+    /// Index of the frame it was made from (set by the tracker; 0 until then).
+    pub frame: usize,
 }
 
 /// Candidates of `image` in blocks that hold none of `taken`, each an immature point with the
@@ -98,6 +102,7 @@ impl MonoKeyframe {
             reference,
             built_with: active.len(),
             first_residual: None,
+            frame: 0,
         })
     }
 
@@ -242,5 +247,45 @@ impl MonoKeyframe {
     /// Median depth of the active points, map units.
     pub fn median_depth(&self, cfg: &DirectMonoConfig) -> f64 {
         1.0 / median_rho(&self.points, cfg).max(1e-9)
+    }
+}
+
+/// Drops the oldest keyframes of `window` (oldest first; `frame_of` gives the frame each was
+/// made from) beyond the newest `keep`, except those made fewer than `young` frames before
+/// `now`.
+pub(super) fn prune_window<T>(
+    window: &mut VecDeque<T>,
+    frame_of: impl Fn(&T) -> usize,
+    now: usize,
+    (keep, young): (usize, usize),
+) {
+    while window.len() > keep
+        && window
+            .front()
+            .is_some_and(|w| now.saturating_sub(frame_of(w)) >= young)
+    {
+        window.pop_front();
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use std::collections::VecDeque;
+
+    use super::prune_window;
+
+    /// One keyframe kept, and any made fewer than three frames ago: at one keyframe per frame
+    /// the window holds two; at one per two frames, one.
+    #[test]
+    fn the_window_keeps_young_keyframes_beyond_its_size() {
+        let mut every_frame: VecDeque<usize> = [7, 8, 9].into();
+        prune_window(&mut every_frame, |f| *f, 10, (1, 3));
+        assert_eq!(every_frame, VecDeque::from([8, 9]));
+        let mut every_second: VecDeque<usize> = [4, 6, 8].into();
+        prune_window(&mut every_second, |f| *f, 10, (1, 3));
+        assert_eq!(every_second, VecDeque::from([8]));
+        let mut none_young: VecDeque<usize> = [1, 2].into();
+        prune_window(&mut none_young, |f| *f, 10, (0, 3));
+        assert!(none_young.is_empty());
     }
 }

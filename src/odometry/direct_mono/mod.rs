@@ -26,9 +26,10 @@
 //!    frames holding the gauge), the points it finds to be outliers dropped. The new
 //!    keyframe, at its refined pose, takes the active points carried in (moved, projected,
 //!    their filters transferred) and immature points in the blocks they leave free. The
-//!    previous keyframe keeps its immature points in a window of `window` keyframes: they are
-//!    still searched in each frame (from `T_cur_kf = T_wc^-1 T_w_kf`), and each that
-//!    converges is carried into the newest keyframe (SVO's seeds).
+//!    previous keyframe keeps its immature points in a window of `window` keyframes (and of
+//!    those made fewer than `seed_frames` frames ago): they are still searched in each frame
+//!    (from `T_cur_kf = T_wc^-1 T_w_kf`), and each that converges is carried into the newest
+//!    keyframe (SVO's seeds).
 //! 5. A frame whose position jumps away from the constant-velocity prediction (by more than
 //!    `max_motion_jump` of the recent step length, when that step is at least
 //!    `min_judged_step` of the median depth) has broken the map's scale: it and every later
@@ -61,7 +62,7 @@ use vofront_robust::{Reason, Verdict};
 use bundle::{frame_state, refine_window, WindowFrame};
 pub use config::DirectMonoConfig;
 use init::two_view;
-use keyframe::MonoKeyframe;
+use keyframe::{prune_window, MonoKeyframe};
 
 use super::coast::Coasting;
 use super::keyframe::KeyframeView;
@@ -372,6 +373,8 @@ impl DirectMonoTracker {
             TrackStatus::Ok
         };
         self.started = true;
+        let mut kf = kf;
+        kf.frame = since;
         self.state = State::Tracking {
             kf: Box::new(kf),
             last: tv.t_21,
@@ -469,9 +472,9 @@ impl DirectMonoTracker {
                 }
                 old.keep_immature(&self.cfg);
                 window.push_back(*old);
-                while window.len() > self.cfg.window {
-                    window.pop_front();
-                }
+                kf.frame = self.late.frame();
+                let (keep, young) = (self.cfg.window, self.cfg.seed_frames);
+                prune_window(&mut window, |w| w.frame, kf.frame, (keep, young));
                 keyframe = true;
                 last = Isometry3::identity();
             }
