@@ -7,7 +7,10 @@
 //! where the feature trackers drift (feature RGB-D ten times its error on the repeated
 //! pattern, the monocular one forty times, though it keeps every frame); through the exposure jumps the feature
 //! trackers keep every frame without a break, while the direct tracker restarts at some of
-//! the jumps.
+//! the jumps. On one camera, the direct monocular tracker keeps every frame through the
+//! jumps without a break (retried from the gain of the mean grey levels) and through the
+//! blur; it loses frames on low texture and drifts on the repeated pattern (the compare
+//! tables show it).
 
 use std::path::PathBuf;
 
@@ -73,7 +76,7 @@ fn assert_every_allowed_tracker_ran(report: &CompareReport) {
 }
 
 #[test]
-fn through_exposure_jumps_the_feature_trackers_keep_going_and_direct_restarts_at_jumps() {
+fn through_exposure_jumps_direct_restarts_and_the_others_keep_going() {
     let report = compare_on(Challenge::ExposureJumps);
     assert_every_allowed_tracker_ran(&report);
     for kind in [TrackerKind::FeatureRgbd, TrackerKind::Mono] {
@@ -90,6 +93,11 @@ fn through_exposure_jumps_the_feature_trackers_keep_going_and_direct_restarts_at
         assert_eq!(p.index % EXPOSURE_BLOCK, 0, "restart at frame {}", p.index);
     }
     assert!(ate(direct) < 0.01);
+    // The direct monocular tracker poses every frame through the jumps, in one map.
+    let mono_direct = run(&report, TrackerKind::DirectMono);
+    assert_eq!((mono_direct.posed, mono_direct.segment_breaks), (FRAMES, 0));
+    let percent = mono_direct.ate_percent.unwrap();
+    assert!(percent < 1.0, "direct-mono {percent} % of the path");
 }
 
 #[test]

@@ -209,6 +209,46 @@ fn brightness_change_is_estimated() {
     assert_brightness(fit.a, fit.b, 1.3, -20.0);
 }
 
+/// Started from a given brightness (`align_from`), e.g. the ratio of mean grey levels after an
+/// exposure change, the alignment converges; with the brightness held, that start is the
+/// brightness used; a start that is no gain is a typed error.
+#[test]
+fn alignment_starts_from_a_given_brightness() {
+    let p = pair(rescaled_camera(&default_camera(), 0.5));
+    let current = brightness(&p.second.image, 0.6, 5.0);
+    let cfg = Se3Config {
+        max_gain: 3.0,
+        ..Se3Config::default()
+    };
+    let reference = Se3Reference::new(&frame(&p), &cfg).unwrap();
+    let fit = reference
+        .align_from(&current, &Isometry3::identity(), (0.6, 0.0), &cfg)
+        .unwrap();
+    assert_accurate(&fit.pose, &p, "brightness start");
+    assert_brightness(fit.a, fit.b, 0.6, 5.0);
+    // With the brightness held, the start is the brightness used.
+    let held = Se3Config {
+        affine_brightness: false,
+        ..cfg
+    };
+    let fit = reference
+        .align_from(&current, &Isometry3::identity(), (0.6, 5.0), &held)
+        .unwrap();
+    assert_eq!((fit.a, fit.b), (0.6, 5.0));
+    assert_accurate(&fit.pose, &p, "held brightness");
+    for bad in [
+        (0.0, 0.0),
+        (-1.0, 0.0),
+        (f64::NAN, 0.0),
+        (1.0, f64::INFINITY),
+    ] {
+        assert!(matches!(
+            reference.align_from(&current, &Isometry3::identity(), bad, &cfg),
+            Err(DirectError::InvalidConfig(_))
+        ));
+    }
+}
+
 #[test]
 fn occluding_patches_are_rejected_by_the_robust_loss() {
     let p = pair(rescaled_camera(&default_camera(), 0.5));

@@ -63,6 +63,10 @@ pub struct DirectMonoConfig {
     pub retry_residual_growth: f64,
     /// Rotation of the perturbed starts, degrees.
     pub retry_turn_deg: f64,
+    /// When the frame's mean grey level differs from the keyframe's by more than this
+    /// fraction (an exposure change), the retries also start from the prediction with the
+    /// gain of the two means.
+    pub retry_gain_change: f64,
     /// A tracked frame whose position differs from the constant-velocity prediction by more
     /// than this fraction of the recent step length breaks the trust in the map's scale: it
     /// and every later frame of the map are flagged `inconsistent` (a vehicle or a hand does
@@ -82,6 +86,8 @@ impl Default for DirectMonoConfig {
             se3: Se3Config {
                 min_depth: 1e-3,
                 max_depth: 1e6,
+                // An auto-exposure step of 2x must pass (the default bound sits on it).
+                max_gain: 3.0,
                 // The depths are the map's own, scale-free: no depth-scale error of a sensor.
                 calibration: CalibrationPrior {
                     depth_scale: 0.0,
@@ -121,6 +127,7 @@ impl Default for DirectMonoConfig {
             min_inlier_ratio: 0.4,
             retry_residual_growth: 3.0,
             retry_turn_deg: 2.0,
+            retry_gain_change: 0.2,
             max_motion_jump: 0.5,
             min_judged_step: 0.01,
             // A sparse reference has hundreds of points, not a dense one's thousands of pixels.

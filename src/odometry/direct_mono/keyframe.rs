@@ -35,6 +35,22 @@ pub(super) struct MonoKeyframe {
     pub first_residual: Option<f64>,
     /// Index of the frame it was made from (set by the tracker; 0 until then).
     pub frame: usize,
+    /// Mean grey level of `image` ([`mean_grey`]).
+    pub mean_grey: f64,
+}
+
+/// Mean of the finite grey levels of `image` (0 without any).
+pub(super) fn mean_grey(image: &Image<f32>) -> f64 {
+    let (w, h) = image.size();
+    let (sum, n) = (0..h)
+        .flat_map(|y| image.row(y)[..w].iter())
+        .filter(|v| v.is_finite())
+        .fold((0.0f64, 0usize), |(s, n), v| (s + f64::from(*v), n + 1));
+    if n == 0 {
+        0.0
+    } else {
+        sum / n as f64
+    }
 }
 
 /// Candidates of `image` in blocks that hold none of `taken`, each an immature point with the
@@ -93,6 +109,7 @@ impl MonoKeyframe {
         }
         let reference =
             Se3Reference::from_inverse_depths(&image, pinhole, None, &active, &cfg.se3)?;
+        let mean_grey = mean_grey(&image);
         Ok(Self {
             image,
             t_wc,
@@ -103,6 +120,7 @@ impl MonoKeyframe {
             built_with: active.len(),
             first_residual: None,
             frame: 0,
+            mean_grey,
         })
     }
 

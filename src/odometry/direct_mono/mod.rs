@@ -14,7 +14,8 @@
 //!    keyframe's active points from the constant-velocity prediction `T_cur_kf =
 //!    T_wc'^-1 T_w_kf`; when it fails or its RMSE exceeds `retry_residual_growth` times the
 //!    keyframe's first one, again from zero motion and from the prediction turned by
-//!    `retry_turn_deg` about x and about y, keeping the lowest RMSE. `T_wc = T_w_kf T_cur_kf^-1`.
+//!    `retry_turn_deg` about x and about y (and, when the mean grey level changed by more
+//!    than `retry_gain_change`, from the prediction with that gain), keeping the lowest RMSE. `T_wc = T_w_kf T_cur_kf^-1`.
 //! 3. Every point of the keyframe is then searched in the frame along its epipolar segment
 //!    over `rho +- 2.5 sigma` and its filter updated; converged points become active, and the
 //!    reference is rebuilt when they grew by `rebuild_growth`.
@@ -42,6 +43,7 @@
 //! window are dropped, not folded into a prior, and the frames between keyframes are not in
 //! it (their poses, already reported, are not revised).
 
+mod align;
 mod bundle;
 mod config;
 mod init;
@@ -50,14 +52,14 @@ mod keyframe;
 use std::collections::VecDeque;
 use std::time::Instant;
 
-use nalgebra::{Isometry3, UnitQuaternion, Vector3};
+use nalgebra::Isometry3;
 use thiserror::Error;
 use vofront_core::{Camera, Pinhole};
 use vofront_direct::mono::FrameState;
 use vofront_direct::{Se3Config, Se3Result, Undistorter};
 use vofront_features::{FeatureError, Features, Orb};
 use vofront_image::Image;
-use vofront_robust::{Reason, Verdict};
+use vofront_robust::Reason;
 
 use bundle::{frame_state, refine_window, WindowFrame};
 pub use config::DirectMonoConfig;
@@ -67,7 +69,7 @@ use keyframe::{prune_window, MonoKeyframe};
 use super::coast::Coasting;
 use super::keyframe::KeyframeView;
 use super::late::{LateEstimates, Waiting};
-use super::{ms_since, reasons_text, FrameEstimate, FrameQuality, TrackStatus, Tracker};
+use super::{ms_since, FrameEstimate, FrameQuality, TrackStatus, Tracker};
 use crate::dataset::Frame;
 use crate::error::VoError;
 
@@ -194,68 +196,6 @@ impl DirectMonoTracker {
             quality: self.cfg.quality,
             ..self.cfg.se3
         }
-    }
-
-    /// One alignment of `image` to `kf` from `prior`, judged: a failed verdict or a low
-    /// inlier ratio is an error.
-    fn align_once(
-        &self,
-        kf: &MonoKeyframe,
-        image: &Image<f32>,
-        prior: &Isometry3<f64>,
-    ) -> Result<Se3Result, VoError> {
-        let r = kf.reference.align(image, prior, &self.se3())?;
-        if r.quality.verdict == Verdict::Failed {
-            return Err(VoError::Rejected {
-                what: "SE(3)",
-                reasons: reasons_text(&r.quality),
-            });
-        }
-        if r.inlier_ratio < self.cfg.min_inlier_ratio {
-            return Err(VoError::LowInlierRatio {
-                ratio: r.inlier_ratio,
-                min: self.cfg.min_inlier_ratio,
-            });
-        }
-        Ok(r)
-    }
-
-    /// The alignment from `prior`, retried from zero motion (`last`) and turned starts when
-    /// it fails or its residual grew (module documentation); the lowest RMSE wins.
-    fn align(
-        &self,
-        kf: &MonoKeyframe,
-        image: &Image<f32>,
-        prior: Isometry3<f64>,
-        last: Isometry3<f64>,
-    ) -> Result<Se3Result, VoError> {
-        let first = self.align_once(kf, image, &prior);
-        let limit = kf
-            .first_residual
-            .map_or(f64::INFINITY, |r| self.cfg.retry_residual_growth * r);
-        if matches!(&first, Ok(r) if r.rmse <= limit) {
-            return first;
-        }
-        let turn = self.cfg.retry_turn_deg.to_radians();
-        let turned = |axis: Vector3<f64>| {
-            let r = UnitQuaternion::from_scaled_axis(axis * turn);
-            Isometry3::from_parts(prior.translation, r * prior.rotation)
-        };
-        let starts = [
-            last,
-            turned(Vector3::x()),
-            turned(-Vector3::x()),
-            turned(Vector3::y()),
-            turned(-Vector3::y()),
-        ];
-        starts
-            .iter()
-            .map(|s| self.align_once(kf, image, s))
-            .fold(first, |best, next| match (best, next) {
-                (Ok(b), Ok(n)) => Ok(if n.rmse < b.rmse { n } else { b }),
-                (Err(_), Ok(n)) => Ok(n),
-                (best, Err(_)) => best,
-            })
     }
 
     /// A located frame's estimate: `fit` against a keyframe at `t_w_kf`.

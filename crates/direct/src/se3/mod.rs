@@ -236,13 +236,32 @@ impl Se3Reference {
     }
 
     /// Aligns `current` (same camera and size as the reference, still distorted if the camera
-    /// is) starting from `prior` (`T_cur_ref`, e.g. from a motion model; identity if unknown).
+    /// is) starting from `prior` (`T_cur_ref`, e.g. from a motion model; identity if unknown)
+    /// and unchanged brightness (`a = 1`, `b = 0`).
     pub fn align(
         &self,
         current: &Image<f32>,
         prior: &Isometry3<f64>,
         cfg: &Se3Config,
     ) -> Result<Se3Result, DirectError> {
+        self.align_from(current, prior, (1.0, 0.0), cfg)
+    }
+
+    /// [`Se3Reference::align`] from the brightness `(a, b)` (`I_cur = a I_ref + b`), e.g. the
+    /// ratio of the two images' mean grey levels after an exposure change: started at `a = 1`
+    /// the coarse levels can explain a 2x jump by the offset and walk the gain away.
+    pub fn align_from(
+        &self,
+        current: &Image<f32>,
+        prior: &Isometry3<f64>,
+        (a, b): (f64, f64),
+        cfg: &Se3Config,
+    ) -> Result<Se3Result, DirectError> {
+        if !(a.is_finite() && b.is_finite() && a > 0.0) {
+            return Err(DirectError::InvalidConfig(
+                "the starting gain must be positive and the offset finite",
+            ));
+        }
         let prior_ok = prior.translation.vector.iter().all(|v| v.is_finite())
             && prior.rotation.coords.iter().all(|v| v.is_finite());
         if !prior_ok {
@@ -262,8 +281,8 @@ impl Se3Reference {
         let coarse = current.coarser_levels(self.levels.len(), MIN_LEVEL_SIDE);
         let mut state = Se3State {
             pose: vofront_core::lie::normalized(prior),
-            a: 1.0,
-            b: 0.0,
+            a,
+            b,
         };
         let mut iterations = vec![0; self.levels.len()];
         let step_weights = SVector::<f64, 8>::from([1.0, 1.0, 1.0, 1.0, 1.0, 1.0, 1e-2, 1e-4]);
