@@ -27,18 +27,30 @@ pub const CHANCE_RESIDUAL_SHARE: f64 = 0.5;
 /// near 0.01).
 pub const FIT_RESIDUAL_SHARE: f64 = 0.1;
 
+/// Count, sum and sum of squares of an image's finite values.
+fn intensity_moments(p: &Image<f32>) -> (usize, f64, f64) {
+    let (w, h) = p.size();
+    (0..h)
+        .flat_map(|y| p.row(y)[..w].iter().copied())
+        .filter(|v| v.is_finite())
+        .fold((0, 0.0, 0.0), |(n, sum, sum_sq), v| {
+            let v = f64::from(v);
+            (n + 1, sum + v, sum_sq + v * v)
+        })
+}
+
+/// Mean of an image's finite values, grey levels (0 for an empty image).
+pub fn intensity_mean(p: &Image<f32>) -> f64 {
+    let (n, sum, _) = intensity_moments(p);
+    if n == 0 {
+        return 0.0;
+    }
+    sum / n as f64
+}
+
 /// Variance of an image's finite values, grey levels^2 (0 for an empty image).
 pub fn intensity_variance(p: &Image<f32>) -> f64 {
-    let (w, h) = p.size();
-    let (mut n, mut sum, mut sum_sq) = (0usize, 0.0f64, 0.0f64);
-    for v in (0..h).flat_map(|y| p.row(y)[..w].iter().copied()) {
-        if !v.is_finite() {
-            continue;
-        }
-        n += 1;
-        sum += v as f64;
-        sum_sq += (v as f64) * (v as f64);
-    }
+    let (n, sum, sum_sq) = intensity_moments(p);
     if n == 0 {
         return 0.0;
     }

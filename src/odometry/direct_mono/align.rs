@@ -3,11 +3,12 @@
 //! grew (module documentation of [`super`], step 2).
 
 use nalgebra::{Isometry3, UnitQuaternion, Vector3};
+use vofront_direct::quality::intensity_mean;
 use vofront_direct::Se3Result;
 use vofront_image::Image;
 use vofront_robust::Verdict;
 
-use super::keyframe::{mean_grey, MonoKeyframe};
+use super::keyframe::MonoKeyframe;
 use super::DirectMonoTracker;
 use crate::error::VoError;
 use crate::odometry::reasons_text;
@@ -82,7 +83,7 @@ impl DirectMonoTracker {
             (turned(-Vector3::y()), same),
         ];
         // An exposure change: the prediction with the gain of the mean grey levels.
-        let gain = mean_grey(image) / kf.mean_grey;
+        let gain = intensity_mean(image) / kf.mean_grey;
         if gain.is_finite() && gain > 0.0 && gain.ln().abs() > self.cfg.retry_gain_change.ln_1p() {
             starts.push((prior, (gain, 0.0)));
         }

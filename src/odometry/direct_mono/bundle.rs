@@ -57,11 +57,7 @@ pub(super) fn refine_window(
     cfg: &DirectMonoConfig,
 ) -> Result<FrameState, VoError> {
     let host = older.len();
-    let kf_state = FrameState {
-        t_cw: kf.t_wc.inverse(),
-        a: kf.a,
-        b: kf.b,
-    };
+    let kf_state = kf.state();
     let frames: Vec<BundleFrame> = older
         .iter()
         .map(|f| BundleFrame {

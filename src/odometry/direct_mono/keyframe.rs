@@ -8,8 +8,9 @@ use nalgebra::{Isometry3, Vector2};
 use vofront_core::Pinhole;
 use vofront_direct::mono::{
     active_points, refine_points, select_points, transfer_points, Candidate, EpipolarPair,
-    MonoPoint,
+    FrameState, MonoPoint,
 };
+use vofront_direct::quality::intensity_mean;
 use vofront_direct::Se3Reference;
 use vofront_image::Image;
 
@@ -35,22 +36,8 @@ pub(super) struct MonoKeyframe {
     pub first_residual: Option<f64>,
     /// Index of the frame it was made from (set by the tracker; 0 until then).
     pub frame: usize,
-    /// Mean grey level of `image` ([`mean_grey`]).
+    /// Mean grey level of `image` ([`intensity_mean`]).
     pub mean_grey: f64,
-}
-
-/// Mean of the finite grey levels of `image` (0 without any).
-pub(super) fn mean_grey(image: &Image<f32>) -> f64 {
-    let (w, h) = image.size();
-    let (sum, n) = (0..h)
-        .flat_map(|y| image.row(y)[..w].iter())
-        .filter(|v| v.is_finite())
-        .fold((0.0f64, 0usize), |(s, n), v| (s + f64::from(*v), n + 1));
-    if n == 0 {
-        0.0
-    } else {
-        sum / n as f64
-    }
 }
 
 /// Candidates of `image` in blocks that hold none of `taken`, each an immature point with the
@@ -109,7 +96,7 @@ impl MonoKeyframe {
         }
         let reference =
             Se3Reference::from_inverse_depths(&image, pinhole, None, &active, &cfg.se3)?;
-        let mean_grey = mean_grey(&image);
+        let mean_grey = intensity_mean(&image);
         Ok(Self {
             image,
             t_wc,
@@ -260,6 +247,15 @@ impl MonoKeyframe {
     /// carried into the new keyframe).
     pub fn keep_immature(&mut self, cfg: &DirectMonoConfig) {
         self.points.retain(|p| !cfg.depth.is_active(p));
+    }
+
+    /// Its pose (`T_cw`) and brightness as a frame of the photometric bundle.
+    pub fn state(&self) -> FrameState {
+        FrameState {
+            t_cw: self.t_wc.inverse(),
+            a: self.a,
+            b: self.b,
+        }
     }
 
     /// Median depth of the active points, map units.

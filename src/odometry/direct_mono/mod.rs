@@ -55,7 +55,6 @@ use std::time::Instant;
 use nalgebra::Isometry3;
 use thiserror::Error;
 use vofront_core::{Camera, Pinhole};
-use vofront_direct::mono::FrameState;
 use vofront_direct::{Se3Config, Se3Result, Undistorter};
 use vofront_features::{FeatureError, Features, Orb};
 use vofront_image::Image;
@@ -400,11 +399,7 @@ impl DirectMonoTracker {
                 if self.cfg.bundle_window > 0 {
                     bundle.push_back(WindowFrame {
                         image: old.image.clone(),
-                        state: FrameState {
-                            t_cw: old.t_wc.inverse(),
-                            a: old.a,
-                            b: old.b,
-                        },
+                        state: old.state(),
                     });
                     while bundle.len() > self.cfg.bundle_window {
                         bundle.pop_front();

@@ -345,23 +345,21 @@ impl LmProblem for Photometric<'_> {
             })
             .collect();
         // Fixed chunks summed in order: the same sums whatever thread ran which chunk.
-        let items: Vec<_> = self
-            .observations
-            .iter()
-            .zip(&self.rows)
-            .zip(&weighted)
-            .collect();
         let PoseBlocks {
             mut u,
             mut gc,
             pairs,
-        } = items
+        } = self
+            .observations
             .par_chunks(OBSERVATIONS_PER_CHUNK)
-            .map(|chunk| {
+            .enumerate()
+            .map(|(c, chunk)| {
                 let mut blocks = PoseBlocks::zeros(n_free);
-                for ((o, row), w_r) in chunk {
+                for (k, o) in chunk.iter().enumerate() {
+                    let at = c * OBSERVATIONS_PER_CHUNK + k;
                     let h = free[self.points[o.point].host];
-                    blocks.add((&row.host, &row.target), w_r, (h, free[o.target]));
+                    let row = &self.rows[at];
+                    blocks.add((&row.host, &row.target), &weighted[at], (h, free[o.target]));
                 }
                 blocks
             })
