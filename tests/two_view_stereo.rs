@@ -130,6 +130,46 @@ fn a_metric_pose_that_contradicts_the_epipolar_one_is_inconsistent() {
     assert!(checked.pnp.quality.is_ok());
 }
 
+/// Rotation and direction are judged together: an epipolar pose turned in yaw and in its
+/// direction of travel by amounts that each alone stay under [`MAX_DISAGREEMENT_SIGMAS`]
+/// (8.5 sigmas each, measured from the 1-degree and 20-degree turns) puts the metric pose
+/// beyond it (a far-point PnP that trades yaw for sideways motion moves both).
+#[test]
+fn rotation_and_direction_disagreements_add_up() {
+    let seq = StereoSequence::driving(3, 3);
+    let outcome = pair(&seq, 2, seq.camera, seq.baseline);
+    let stereo = outcome.feature_stereo.expect("ran").expect("stereo pose");
+    let epipolar = outcome
+        .feature
+        .expect("ran")
+        .expect("epipolar pose")
+        .estimate;
+    let sigmas = |yaw_deg: f64, swerve_deg: f64| {
+        let mut e = epipolar.clone();
+        let about_y =
+            |deg: f64| UnitQuaternion::from_axis_angle(&Vector3::y_axis(), deg.to_radians());
+        e.pose.rotation = about_y(yaw_deg) * e.pose.rotation;
+        e.pose.translation.vector = about_y(swerve_deg) * e.pose.translation.vector;
+        epipolar_disagreement_sigmas(
+            &stereo.pnp.pose,
+            &stereo.pnp.quality,
+            stereo.pnp.covariance.as_ref(),
+            &e,
+        )
+        .expect("compared")
+    };
+    let yaw = 8.5 / sigmas(1.0, 0.0);
+    let swerve = 20.0 * 8.5 / sigmas(0.0, 20.0);
+    let (turned, swerved, both) = (sigmas(yaw, 0.0), sigmas(0.0, swerve), sigmas(yaw, swerve));
+    assert!(turned < MAX_DISAGREEMENT_SIGMAS, "{turned}");
+    assert!(swerved < MAX_DISAGREEMENT_SIGMAS, "{swerved}");
+    assert!(both > MAX_DISAGREEMENT_SIGMAS, "{both}");
+    assert!(
+        (both - turned.hypot(swerved)).abs() < 1.5,
+        "{both} {turned} {swerved}"
+    );
+}
+
 /// The direct SE(3) pose on frame 1's stereo depth answers to the epipolar pose in the same
 /// way: in the room it agrees with it (and stays `ok` in the outcome), and an epipolar pose
 /// turned by 1 degree of yaw or 20 degrees of direction puts it beyond

@@ -158,8 +158,8 @@ pub struct StereoReport {
     pub rmse_px: f64,
     /// Wall-clock time, milliseconds.
     pub ms: f64,
-    /// The larger of its rotation and direction disagreements with the `feature` estimate,
-    /// in combined stated sigmas (`null`: not compared); above
+    /// Its rotation and direction disagreements with the `feature` estimate, judged together
+    /// (`hypot` of the two), in combined stated sigmas (`null`: not compared); above
     /// [`MAX_DISAGREEMENT_SIGMAS`](crate::two_view::stereo::MAX_DISAGREEMENT_SIGMAS) the
     /// quality has the reason `inconsistent`.
     pub epipolar_disagreement_sigmas: Option<f64>,
