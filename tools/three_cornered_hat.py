@@ -17,8 +17,12 @@ source's own variance much smaller than the others' is only bounded, not measure
 For `direct-stereo` it also prints the median rotation sigma per axis of its g2o edges (every
 frame is a keyframe on these clips, so each edge is a consecutive pair).
 
+Further sources, a peer's trajectories for instance, are given as `NAME=PATH` with `{clip}` in
+the path standing for the clip's name; they join the hat as one more source each (a peer that
+shares no step with the trackers above: OpenCV's stereo chain, `opencv_peer.py stereo`).
+
 Run with the peers' Python (`../shared/tools/peers/setup.sh` prints it):
-    python tools/three_cornered_hat.py target/release/vofront ../shared/data
+    python tools/three_cornered_hat.py target/release/vofront ../shared/data [NAME=PATH ...]
 """
 import itertools
 import os
@@ -30,6 +34,7 @@ import numpy as np
 from scipy.spatial.transform import Rotation
 
 BIN, DATA = sys.argv[1], sys.argv[2]
+EXTRA = dict(arg.split("=", 1) for arg in sys.argv[3:])
 CLIPS = ("kitti_06", "kitti_01")
 TRACKERS = ("direct-stereo", "stereo", "mono")
 
@@ -82,6 +87,8 @@ def clip_report(clip, work):
             stderr=subprocess.DEVNULL,
         )
         sources[tracker] = tum_poses(out)
+    for name, path in EXTRA.items():
+        sources[name] = tum_poses(path.replace("{clip}", clip))
     names = list(sources)
     rel = {k: relative_rotations(v) for k, v in sources.items()}
     n = min(len(r) for r in rel.values())
