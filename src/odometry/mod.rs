@@ -42,6 +42,7 @@ mod lost;
 pub mod mono;
 pub mod motion;
 pub mod observe;
+pub mod redraw;
 pub mod registry;
 #[cfg(feature = "rerun")]
 pub mod rerun_log;

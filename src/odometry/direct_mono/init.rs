@@ -1,7 +1,8 @@
 //! The two-view start of a direct monocular map, from the feature path (as the monocular
 //! feature tracker starts): ORB matched between the reference and the current frame,
 //! [`estimate_relative_pose`] (E or H, unit baseline) with its triangulated points, accepted
-//! once the median parallax and the points suffice and the pose is judged `ok`.
+//! once the median parallax and the points suffice, the pose is judged `ok` and other RANSAC
+//! draws do not contradict it ([`crate::odometry::redraw`]).
 //!
 //! Scale: the first map has median point depth 1 in the reference camera (`s = 1 / median
 //! Z`); a map started after a loss takes the baseline `step * frames` from the motion model's
@@ -16,6 +17,7 @@ use vofront_robust::{Quality, Verdict};
 
 use super::config::DirectMonoConfig;
 use crate::odometry::reasons_text;
+use crate::odometry::redraw::{redraw_disagreement_sigmas, MAX_REDRAW_SIGMAS};
 use crate::pipeline::matched_pixels;
 
 /// An accepted two-view start.
@@ -74,6 +76,12 @@ pub(super) fn two_view(
     }
     if rel.triangulated() < cfg.min_init_points {
         let why = format!("{} points triangulated", rel.triangulated());
+        return Err(fail(why, true));
+    }
+    // A start that other RANSAC draws contradict is one of two the data admit.
+    let redrawn = redraw_disagreement_sigmas(&x1, &x2, camera, &cfg.relative, &rel);
+    if redrawn > MAX_REDRAW_SIGMAS {
+        let why = format!("another RANSAC draw gives a pose {redrawn:.1} sigmas away");
         return Err(fail(why, true));
     }
     let mut depths: Vec<f64> = rel.points.iter().flatten().map(|p| p.z).collect();

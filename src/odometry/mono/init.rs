@@ -2,8 +2,9 @@
 //!
 //! The reference frame (pose `T_w1`) and the current frame are matched and
 //! [`estimate_relative_pose`] gives `T_21` with unit baseline; once the median parallax and
-//! the number of triangulated points suffice and the two-view pose is judged `ok`, both frames
-//! become keyframes and the points (in units of that baseline, which fixes the arbitrary
+//! the number of triangulated points suffice, the two-view pose is judged `ok` and other
+//! RANSAC draws do not contradict it ([`crate::odometry::redraw`]), both frames become
+//! keyframes and the points (in units of that baseline, which fixes the arbitrary
 //! scale) the map. A rotation-dominant start, or a pose judged `unreliable`, keeps waiting for
 //! parallax; a reference that no longer matches is given up.
 //!
@@ -17,6 +18,7 @@ use vofront_features::{match_descriptors, Features, MatchConfig};
 use vofront_geometry::{estimate_relative_pose, RelativePoseConfig};
 
 use crate::odometry::local_map::LocalMap;
+use crate::odometry::redraw::{redraw_disagreement_sigmas, MAX_REDRAW_SIGMAS};
 use crate::odometry::{reasons_text, FrameQuality};
 use crate::pipeline::matched_pixels;
 use crate::robust::{Quality, Verdict};
@@ -99,6 +101,13 @@ pub(super) fn initialise(
             "initialising: {} points triangulated, {} needed",
             rel.triangulated(),
             rules.min_points
+        )));
+    }
+    // A start that other RANSAC draws contradict is one of two the data admit.
+    let redrawn = redraw_disagreement_sigmas(&x1, &x2, rules.camera, rules.relative, &rel);
+    if redrawn > MAX_REDRAW_SIGMAS {
+        return Err(wait(format!(
+            "initialising: another RANSAC draw gives a pose {redrawn:.1} sigmas away"
         )));
     }
     let mut map = LocalMap::default();
