@@ -9,8 +9,10 @@
 use nalgebra::{Isometry3, UnitQuaternion, Vector3};
 use vofront::fixtures::image2d::to_gray8;
 use vofront::fixtures::stereo::StereoSequence;
+use vofront::geometry::RelativePose;
 use vofront::two_view::stereo::{
-    check_against_epipolar, epipolar_disagreement_sigmas, StereoFirst, MAX_DISAGREEMENT_SIGMAS,
+    check_against_epipolar, epipolar_disagreement_sigmas, StereoFirst, StereoPose,
+    MAX_DISAGREEMENT_SIGMAS,
 };
 use vofront::two_view::{estimate, Inputs, Method, Outcome};
 use vofront_core::{Camera, Distortion, Lens};
@@ -92,12 +94,8 @@ fn check_metric(seq: &StereoSequence, gap: usize, direct_required: bool) {
     }
 }
 
-/// An epipolar pose turned by 1 degree about the vertical (the yaw a far-point PnP can trade
-/// for sideways motion), or with its direction turned by 20 degrees, contradicts the metric
-/// pose: the metric pose becomes `unreliable` (`inconsistent`), and the recommendation moves
-/// to the epipolar estimate. An epipolar estimate that is not `ok` is not compared.
-#[test]
-fn a_metric_pose_that_contradicts_the_epipolar_one_is_inconsistent() {
+/// The stereo and the epipolar estimates of frames 0 and 2 of the rendered stereo street.
+fn street_stereo_and_epipolar() -> (StereoPose, RelativePose) {
     let seq = StereoSequence::driving(3, 3);
     let outcome = pair(&seq, 2, seq.camera, seq.baseline);
     let stereo = outcome.feature_stereo.expect("ran").expect("stereo pose");
@@ -106,6 +104,16 @@ fn a_metric_pose_that_contradicts_the_epipolar_one_is_inconsistent() {
         .expect("ran")
         .expect("epipolar pose")
         .estimate;
+    (stereo, epipolar)
+}
+
+/// An epipolar pose turned by 1 degree about the vertical (the yaw a far-point PnP can trade
+/// for sideways motion), or with its direction turned by 20 degrees, contradicts the metric
+/// pose: the metric pose becomes `unreliable` (`inconsistent`), and the recommendation moves
+/// to the epipolar estimate. An epipolar estimate that is not `ok` is not compared.
+#[test]
+fn a_metric_pose_that_contradicts_the_epipolar_one_is_inconsistent() {
+    let (stereo, epipolar) = street_stereo_and_epipolar();
     assert!(epipolar.quality.is_ok());
     let yaw = UnitQuaternion::from_axis_angle(&Vector3::y_axis(), 1f64.to_radians());
     let mut turned = epipolar.clone();
@@ -136,14 +144,7 @@ fn a_metric_pose_that_contradicts_the_epipolar_one_is_inconsistent() {
 /// beyond it (a far-point PnP that trades yaw for sideways motion moves both).
 #[test]
 fn rotation_and_direction_disagreements_add_up() {
-    let seq = StereoSequence::driving(3, 3);
-    let outcome = pair(&seq, 2, seq.camera, seq.baseline);
-    let stereo = outcome.feature_stereo.expect("ran").expect("stereo pose");
-    let epipolar = outcome
-        .feature
-        .expect("ran")
-        .expect("epipolar pose")
-        .estimate;
+    let (stereo, epipolar) = street_stereo_and_epipolar();
     let sigmas = |yaw_deg: f64, swerve_deg: f64| {
         let mut e = epipolar.clone();
         let about_y =
@@ -190,7 +191,7 @@ fn the_direct_metric_pose_is_compared_with_the_epipolar_one() {
         epipolar.quality,
         se3.quality
     );
-    let disagreement = |e: &vofront::geometry::RelativePose| {
+    let disagreement = |e: &RelativePose| {
         epipolar_disagreement_sigmas(&se3.pose, &se3.quality, se3.covariance.as_ref(), e)
             .expect("compared")
     };
