@@ -5,7 +5,7 @@
 //! support, and RANSAC lands in either depending on its samples. The covariance at a minimum
 //! describes that minimum only, so a wrong start is stated as precisely as a right one
 //! (`kitti_01` played backwards, frames 0 and 14: seeds 0 and 1 give a pose 3.95 deg and 30
-//! deg off with sigmas of 0.45 and 2.6 deg, `ok`, six other seeds one within 1 deg and 3 deg;
+//! deg off with sigmas of 0.45 and 2.6 deg, `ok`, six other seeds one within 1.1 and 3.3 deg;
 //! README). A map inherits its start, and every later frame agrees with it.
 //!
 //! So a start the initialiser would accept is estimated again from [`REDRAWS`] other RANSAC
