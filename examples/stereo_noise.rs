@@ -30,7 +30,7 @@ use std::path::PathBuf;
 use vofront::dataset::Dataset;
 use vofront::features::{knn2, match_stereo, Features, Orb, OrbConfig, StereoConfig, StereoMatch};
 use vofront::odometry::mono::KEYPOINT_QUANTISATION_PX;
-use vofront::robust::median_in_place;
+use vofront::robust::{mad_sigma, median_in_place};
 
 /// Disparity bins, pixels (`[lo, hi)`).
 const BINS: [(f32, f32); 6] = [
@@ -83,13 +83,6 @@ fn stereo_frame(
 /// The median of `values` (NaN when empty).
 fn median(values: &[f64]) -> f64 {
     median_in_place(&mut values.to_vec()).unwrap_or(f64::NAN)
-}
-
-/// `1.4826` times the median absolute deviation: the standard deviation of a normal sample.
-fn robust_spread(values: &[f64]) -> f64 {
-    let centre = median(values);
-    let deviations: Vec<f64> = values.iter().map(|v| (v - centre).abs()).collect();
-    1.4826 * median(&deviations)
 }
 
 fn measure(root: &PathBuf, gap: usize) -> Result<(), Box<dyn std::error::Error>> {
@@ -190,8 +183,8 @@ fn measure(root: &PathBuf, gap: usize) -> Result<(), Box<dyn std::error::Error>>
         println!(
             "  {lo:>5.0}-{hi:<6.0} | {:>5} | {median_r:>11.3} | {:>11.3} | {median_n:>14.2} | {:>14.2} | {:>13.1}% | {:>10.1}%",
             inside.len(),
-            robust_spread(&r),
-            robust_spread(&n),
+            mad_sigma(&r).unwrap_or(f64::NAN),
+            mad_sigma(&n).unwrap_or(f64::NAN),
             100.0 * beyond,
             100.0 * median(&excess)
         );

@@ -11,9 +11,8 @@ use vofront::features::{match_descriptors, Orb};
 use vofront::fixtures::driving::DrivingSequence;
 use vofront::geometry::{estimate_relative_pose, RelativePose, RelativePoseConfig};
 use vofront::odometry::mono::MonoConfig;
-use vofront::odometry::redraw::{
-    disagreement_sigmas, redraw_disagreement_sigmas, MAX_REDRAW_SIGMAS,
-};
+use vofront::odometry::redraw::{disagreement_sigmas, redraw_disagreement_sigmas};
+use vofront::two_view::stereo::MAX_DISAGREEMENT_SIGMAS;
 
 /// Pixels quantised to a quarter pixel, as keypoints at a pyramid level are.
 fn quantised(u: Vector2<f64>) -> Vector2<f64> {
@@ -121,5 +120,5 @@ fn a_start_with_two_minima_is_contradicted_by_a_redraw() {
         start.quality
     );
     let sigmas = redraw_disagreement_sigmas(&x1, &x2, &camera, &cfg.relative, &start);
-    assert!(sigmas > MAX_REDRAW_SIGMAS, "{sigmas} sigmas");
+    assert!(sigmas > MAX_DISAGREEMENT_SIGMAS, "{sigmas} sigmas");
 }

@@ -9,10 +9,11 @@
 //! README). A map inherits its start, and every later frame agrees with it.
 //!
 //! So a start the initialiser would accept is estimated again from [`REDRAWS`] other RANSAC
-//! seeds; when a redraw that is not `failed` lies more than [`MAX_REDRAW_SIGMAS`] combined
-//! stated sigmas from it (rotation and direction of travel judged together,
-//! [`disagreement_sigmas`]), the data admit two starts and the initialiser waits for more
-//! motion. It costs three more two-view estimates once per accepted start.
+//! seeds; when a redraw that is not `failed` lies more than
+//! [`MAX_DISAGREEMENT_SIGMAS`](crate::two_view::stereo::MAX_DISAGREEMENT_SIGMAS) combined
+//! stated sigmas from it (the stereo two-view's bound against the epipolar estimate; rotation
+//! and direction of travel judged together, [`disagreement_sigmas`]), the data admit two
+//! starts and the initialiser waits for more motion. It costs three more two-view estimates once per accepted start.
 
 use nalgebra::Vector2;
 use rayon::prelude::*;
@@ -20,13 +21,10 @@ use vofront_core::Camera;
 use vofront_geometry::{estimate_relative_pose, RelativePose, RelativePoseConfig};
 use vofront_robust::Verdict;
 
+use crate::two_view::stereo::combined_sigmas;
+
 /// Further RANSAC draws a start is checked against.
 pub const REDRAWS: u64 = 3;
-
-/// Largest disagreement of a start with a redraw, in combined stated sigmas (the stereo
-/// two-view's check against the epipolar estimate uses the same 10: 5 sigmas of sigmas that
-/// real pairs show about 2x too small).
-pub const MAX_REDRAW_SIGMAS: f64 = 10.0;
 
 /// Odd stride between the seeds of the redraws (`seed + k * stride`), so that they share no
 /// random sequence with the start's own seed.
@@ -35,23 +33,25 @@ const SEED_STRIDE: u64 = 0x9E37_79B9_7F4A_7C15;
 /// How far two relative poses of the same pair are apart, in their combined stated sigmas:
 /// `hypot(z_rot, z_dir)`, `z_rot = angle(R_a R_b^T) / hypot(sigma_a, sigma_b)` over the RMS
 /// rotation sigmas and `z_dir = angle(t_a, t_b) / hypot(sigma_a, sigma_b)` over the direction
-/// sigmas (degrees); `None` when a sigma is unknown or a translation is zero.
+/// sigmas (degrees, [`combined_sigmas`]); `None` when a sigma is unknown or a translation is
+/// zero.
 pub fn disagreement_sigmas(a: &RelativePose, b: &RelativePose) -> Option<f64> {
     let (ua, ub) = (&a.quality.uncertainty, &b.quality.uncertainty);
-    let rotation = (a.pose.rotation * b.pose.rotation.inverse())
-        .angle()
-        .to_degrees();
-    let z_rot = rotation / ua.rotation_sigma_deg?.hypot(ub.rotation_sigma_deg?);
     let (ta, tb) = (a.pose.translation.vector, b.pose.translation.vector);
     if ta.norm() == 0.0 || tb.norm() == 0.0 {
         return None;
     }
-    let direction = ta.angle(&tb).to_degrees();
-    let z_dir = direction
-        / ua.translation_direction_sigma_deg?
-            .hypot(ub.translation_direction_sigma_deg?);
-    let sigmas = z_rot.hypot(z_dir);
-    sigmas.is_finite().then_some(sigmas)
+    let rotation = (a.pose.rotation * b.pose.rotation.inverse())
+        .angle()
+        .to_degrees();
+    combined_sigmas(&[
+        Some((rotation, ua.rotation_sigma_deg?, ub.rotation_sigma_deg?)),
+        Some((
+            ta.angle(&tb).to_degrees(),
+            ua.translation_direction_sigma_deg?,
+            ub.translation_direction_sigma_deg?,
+        )),
+    ])
 }
 
 /// The largest disagreement ([`disagreement_sigmas`]) of `start` (estimated from `x1`, `x2`

@@ -121,15 +121,26 @@ pub fn epipolar_disagreement_sigmas(
     let rot_s = quality.uncertainty.rotation_sigma_deg?;
     let rot_e = q_e.rotation_sigma_deg?;
     let rotation = (pose.rotation * e.rotation.inverse()).angle().to_degrees();
-    let mut sigmas = rotation / rot_s.hypot(rot_e);
     let (t_s, t_e) = (pose.translation.vector, e.translation.vector);
     let dir_s = covariance.and_then(|c| direction_sigma_deg(c, &t_s));
-    if let (Some(dir_s), Some(dir_e)) = (dir_s, q_e.translation_direction_sigma_deg) {
-        if t_e.norm() > 0.0 {
-            let direction = t_s.angle(&t_e).to_degrees();
-            sigmas = sigmas.hypot(direction / dir_s.hypot(dir_e));
+    let direction = match (dir_s, q_e.translation_direction_sigma_deg) {
+        (Some(dir_s), Some(dir_e)) if t_e.norm() > 0.0 => {
+            Some((t_s.angle(&t_e).to_degrees(), dir_s, dir_e))
         }
-    }
+        _ => None,
+    };
+    combined_sigmas(&[Some((rotation, rot_s, rot_e)), direction])
+}
+
+/// Two estimates' disagreement in their combined stated sigmas, the parts judged together:
+/// `sqrt(sum z_i^2)` over the parts `(difference, sigma_a, sigma_b)` that are given (degrees),
+/// `z_i = difference / hypot(sigma_a, sigma_b)`; `None` when it is not finite.
+pub fn combined_sigmas(parts: &[Option<(f64, f64, f64)>]) -> Option<f64> {
+    let sigmas = parts
+        .iter()
+        .flatten()
+        .map(|(d, a, b)| d / a.hypot(*b))
+        .fold(0.0f64, f64::hypot);
     sigmas.is_finite().then_some(sigmas)
 }
 

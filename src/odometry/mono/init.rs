@@ -18,10 +18,11 @@ use vofront_features::{match_descriptors, Features, MatchConfig};
 use vofront_geometry::{estimate_relative_pose, RelativePoseConfig};
 
 use crate::odometry::local_map::LocalMap;
-use crate::odometry::redraw::{redraw_disagreement_sigmas, MAX_REDRAW_SIGMAS};
+use crate::odometry::redraw::redraw_disagreement_sigmas;
 use crate::odometry::{reasons_text, FrameQuality};
 use crate::pipeline::matched_pixels;
 use crate::robust::{Quality, Verdict};
+use crate::two_view::stereo::MAX_DISAGREEMENT_SIGMAS;
 
 /// Settings of [`initialise`].
 pub(super) struct InitRules<'a> {
@@ -105,7 +106,7 @@ pub(super) fn initialise(
     }
     // A start that other RANSAC draws contradict is one of two the data admit.
     let redrawn = redraw_disagreement_sigmas(&x1, &x2, rules.camera, rules.relative, &rel);
-    if redrawn > MAX_REDRAW_SIGMAS {
+    if redrawn > MAX_DISAGREEMENT_SIGMAS {
         return Err(wait(format!(
             "initialising: another RANSAC draw gives a pose {redrawn:.1} sigmas away"
         )));
