@@ -11,7 +11,7 @@ use vofront::features::{match_descriptors, Orb};
 use vofront::fixtures::driving::DrivingSequence;
 use vofront::geometry::{estimate_relative_pose, RelativePose, RelativePoseConfig};
 use vofront::odometry::mono::MonoConfig;
-use vofront::odometry::redraw::{disagreement_sigmas, redraw_disagreement_sigmas};
+use vofront::odometry::redraw::{contradicted, disagreement_sigmas, redraw_disagreement_sigmas};
 use vofront::two_view::stereo::MAX_DISAGREEMENT_SIGMAS;
 
 /// Pixels quantised to a quarter pixel, as keypoints at a pyramid level are.
@@ -45,6 +45,8 @@ fn redraws_of_a_clean_street_pair_agree() {
     let sigmas =
         redraw_disagreement_sigmas(&x1, &x2, &seq.camera, &RelativePoseConfig::default(), &pose);
     assert!(sigmas < 3.0, "{sigmas} sigmas");
+    let cfg = RelativePoseConfig::default();
+    assert_eq!(contradicted(&x1, &x2, &seq.camera, &cfg, &pose), None);
 }
 
 /// A pose turned by 6 of its rotation sigmas is 6 / sqrt(2) combined sigmas from itself (both
@@ -121,4 +123,8 @@ fn a_start_with_two_minima_is_contradicted_by_a_redraw() {
     );
     let sigmas = redraw_disagreement_sigmas(&x1, &x2, &camera, &cfg.relative, &start);
     assert!(sigmas > MAX_DISAGREEMENT_SIGMAS, "{sigmas} sigmas");
+    assert_eq!(
+        contradicted(&x1, &x2, &camera, &cfg.relative, &start),
+        Some(sigmas)
+    );
 }

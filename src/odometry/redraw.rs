@@ -21,7 +21,7 @@ use vofront_core::Camera;
 use vofront_geometry::{estimate_relative_pose, RelativePose, RelativePoseConfig};
 use vofront_robust::Verdict;
 
-use crate::two_view::stereo::combined_sigmas;
+use crate::two_view::stereo::{combined_sigmas, MAX_DISAGREEMENT_SIGMAS};
 
 /// Further RANSAC draws a start is checked against.
 pub const REDRAWS: u64 = 3;
@@ -75,4 +75,18 @@ pub fn redraw_disagreement_sigmas(
                 .flatten()
         })
         .reduce(|| 0.0, f64::max)
+}
+
+/// [`redraw_disagreement_sigmas`] when it exceeds
+/// [`MAX_DISAGREEMENT_SIGMAS`](crate::two_view::stereo::MAX_DISAGREEMENT_SIGMAS): `start` is
+/// one of two starts the data admit; `None` when the redraws agree with it.
+pub fn contradicted(
+    x1: &[Vector2<f64>],
+    x2: &[Vector2<f64>],
+    camera: &Camera,
+    cfg: &RelativePoseConfig,
+    start: &RelativePose,
+) -> Option<f64> {
+    let sigmas = redraw_disagreement_sigmas(x1, x2, camera, cfg, start);
+    (sigmas > MAX_DISAGREEMENT_SIGMAS).then_some(sigmas)
 }

@@ -17,9 +17,8 @@ use vofront_robust::{Quality, Verdict};
 
 use super::config::DirectMonoConfig;
 use crate::odometry::reasons_text;
-use crate::odometry::redraw::redraw_disagreement_sigmas;
+use crate::odometry::redraw;
 use crate::pipeline::matched_pixels;
-use crate::two_view::stereo::MAX_DISAGREEMENT_SIGMAS;
 
 /// An accepted two-view start.
 pub(super) struct TwoView {
@@ -79,9 +78,7 @@ pub(super) fn two_view(
         let why = format!("{} points triangulated", rel.triangulated());
         return Err(fail(why, true));
     }
-    // A start that other RANSAC draws contradict is one of two the data admit.
-    let redrawn = redraw_disagreement_sigmas(&x1, &x2, camera, &cfg.relative, &rel);
-    if redrawn > MAX_DISAGREEMENT_SIGMAS {
+    if let Some(redrawn) = redraw::contradicted(&x1, &x2, camera, &cfg.relative, &rel) {
         let why = format!("another RANSAC draw gives a pose {redrawn:.1} sigmas away");
         return Err(fail(why, true));
     }

@@ -18,11 +18,10 @@ use vofront_features::{match_descriptors, Features, MatchConfig};
 use vofront_geometry::{estimate_relative_pose, RelativePoseConfig};
 
 use crate::odometry::local_map::LocalMap;
-use crate::odometry::redraw::redraw_disagreement_sigmas;
+use crate::odometry::redraw;
 use crate::odometry::{reasons_text, FrameQuality};
 use crate::pipeline::matched_pixels;
 use crate::robust::{Quality, Verdict};
-use crate::two_view::stereo::MAX_DISAGREEMENT_SIGMAS;
 
 /// Settings of [`initialise`].
 pub(super) struct InitRules<'a> {
@@ -104,9 +103,7 @@ pub(super) fn initialise(
             rules.min_points
         )));
     }
-    // A start that other RANSAC draws contradict is one of two the data admit.
-    let redrawn = redraw_disagreement_sigmas(&x1, &x2, rules.camera, rules.relative, &rel);
-    if redrawn > MAX_DISAGREEMENT_SIGMAS {
+    if let Some(redrawn) = redraw::contradicted(&x1, &x2, rules.camera, rules.relative, &rel) {
         return Err(wait(format!(
             "initialising: another RANSAC draw gives a pose {redrawn:.1} sigmas away"
         )));
