@@ -10,7 +10,7 @@
 //!
 //! So a start the initialiser would accept is estimated again from [`REDRAWS`] other RANSAC
 //! seeds; when a redraw that is not `failed` lies more than
-//! [`MAX_DISAGREEMENT_SIGMAS`](crate::two_view::stereo::MAX_DISAGREEMENT_SIGMAS) combined
+//! [`MAX_DISAGREEMENT_SIGMAS`] combined
 //! stated sigmas from it (the stereo two-view's bound against the epipolar estimate; rotation
 //! and direction of travel judged together, [`disagreement_sigmas`]), the data admit two
 //! starts and the initialiser waits for more motion. It costs three more two-view estimates once per accepted start.
@@ -77,9 +77,8 @@ pub fn redraw_disagreement_sigmas(
         .reduce(|| 0.0, f64::max)
 }
 
-/// [`redraw_disagreement_sigmas`] when it exceeds
-/// [`MAX_DISAGREEMENT_SIGMAS`](crate::two_view::stereo::MAX_DISAGREEMENT_SIGMAS): `start` is
-/// one of two starts the data admit; `None` when the redraws agree with it.
+/// [`redraw_disagreement_sigmas`] when it exceeds [`MAX_DISAGREEMENT_SIGMAS`]: `start` is one
+/// of two starts the data admit; `None` when the redraws agree with it.
 pub fn contradicted(
     x1: &[Vector2<f64>],
     x2: &[Vector2<f64>],
