@@ -9,6 +9,7 @@ use vofront::fixtures::image2d::{
 use vofront::fixtures::scene::{default_camera, pose_wc, Scene};
 use vofront::geometry::Camera;
 use vofront::image::Image;
+use vofront::pipeline::TwoViewEstimator;
 use vofront::robust::{Reason, Verdict};
 use vofront::two_view::{estimate, Inputs, Method, Outcome, Status};
 
@@ -164,9 +165,9 @@ fn pure_rotation_is_unreliable_with_an_accurate_rotation() {
     assert!(rotation_error_deg(&o, &truth) < OK_ROTATION_DEG);
 }
 
-#[test]
-fn a_plane_is_never_confidently_wrong() {
-    // Plane Z = 3 seen from camera 1, camera 2 rotated and moved: x2 ~ K (R + t n^T / d) K^-1 x1.
+/// Plane `Z = 3` seen from camera 1, camera 2 rotated and moved,
+/// `x2 ~ K (R + t n^T / d) K^-1 x1`: the motion and the two textured images.
+fn plane_pair() -> (Isometry3<f64>, Image<u8>, Image<u8>) {
     let cam: Camera = default_camera();
     let k = cam.pinhole.matrix();
     let truth = Isometry3::from_parts(
@@ -178,16 +179,51 @@ fn a_plane_is_never_confidently_wrong() {
         * (truth.rotation.to_rotation_matrix().into_inner()
             + truth.translation.vector * n_over_d.transpose())
         * k.try_inverse().expect("intrinsics are invertible");
-    let o = run(
+    (
+        truth,
         to_gray8(&textured_image(640, 480, 5)),
         to_gray8(&warped_textured_image(640, 480, 5, &h)),
-        None,
-    );
+    )
+}
+
+#[test]
+fn a_plane_is_never_confidently_wrong() {
+    let (truth, img1, img2) = plane_pair();
+    let o = run(img1, img2, None);
     print("plane", &o);
     let verdict = feature_verdict(&o);
     assert!(verdict.is_some(), "a textured plane has a pose");
     if verdict == Some(Verdict::Ok) {
         assert!(rotation_error_deg(&o, &truth) < OK_ROTATION_DEG);
+    }
+}
+
+/// A plane's points admit two motions (the homography's twins), and which one the search
+/// lands on depends on its random draws: whichever it is, the wrong twin is never `ok`. (A
+/// local optimisation refitting on a subset of the inliers once made 3 of these 40 seeds
+/// `ok` at 4.9 degrees off.)
+#[test]
+fn a_plane_is_never_confidently_wrong_whatever_the_seed() {
+    let (truth, img1, img2) = plane_pair();
+    let mut estimator = TwoViewEstimator::default();
+    estimator.orb.n_features = 1000;
+    for seed in 0..40 {
+        estimator.geometry.ransac.seed = seed;
+        let fit = estimator
+            .relative_pose(&img1, &img2, &default_camera())
+            .expect("a textured plane has a pose");
+        let error = fit
+            .estimate
+            .rotation()
+            .angle_to(&truth.rotation)
+            .to_degrees();
+        if fit.estimate.quality.verdict == Verdict::Ok {
+            assert!(
+                error < OK_ROTATION_DEG,
+                "seed {seed}: ok at {error} deg off ({:?})",
+                fit.estimate.model
+            );
+        }
     }
 }
 
