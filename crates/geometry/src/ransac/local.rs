@@ -27,6 +27,23 @@ const REPRODUCED: f64 = 1e-6;
 pub(super) struct LocalOptimisation<M> {
     pub inliers: Vec<usize>,
     pub models: Vec<M>,
+    /// Most inliers a refit uses ([`super::RansacConfig::lo_max_inliers`]).
+    pub max_inliers: usize,
+}
+
+/// Keeps at most `max` (at least 1) of `indices`, evenly spread over the list: entry
+/// `floor(k n / max)` for `k = 0..max`, so that a list ordered by position or by pyramid
+/// level keeps its proportions.
+pub(super) fn thin_evenly(indices: &mut Vec<usize>, max: usize) {
+    let (n, max) = (indices.len(), max.max(1));
+    if n <= max {
+        return;
+    }
+    // `k n / max >= k`: each entry is read before it is overwritten.
+    for k in 0..max {
+        indices[k] = indices[k * n / max];
+    }
+    indices.truncate(max);
 }
 
 /// The inliers of the best refined model, to tell when polishing a hypothesis would only find
@@ -74,7 +91,8 @@ impl Polished {
 }
 
 impl<M> LocalOptimisation<M> {
-    /// Refines `current` for up to `rounds` rounds (refit on the inliers, keep a lower score);
+    /// Refines `current` for up to `rounds` rounds (refit on the inliers, at most
+    /// `max_inliers` of them, evenly spread; keep a lower score);
     /// returns the result and whether it is confirmed: some refit on its inliers scored no
     /// worse than the model it started from (within [`REPRODUCED`]).
     pub fn run<E: Estimator<Model = M>>(
@@ -93,6 +111,7 @@ impl<M> LocalOptimisation<M> {
             if self.inliers.len() <= est.sample_size() {
                 break;
             }
+            thin_evenly(&mut self.inliers, self.max_inliers);
             est.refine(&current.0, &self.inliers, &mut self.models);
             let mut improved = false;
             let reproduced = current.1 * (1.0 + REPRODUCED);

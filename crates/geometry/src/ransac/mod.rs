@@ -14,6 +14,9 @@
 //! would find that model again. The premise fails when two distinct models share most
 //! inliers (in forward motion the distant points lie near the epipolar lines of a wrong
 //! motion too): the better model is then never polished. No default turns it on.
+//! [`RansacConfig::lo_max_inliers`] bounds the cost of each polish instead: the refit uses at
+//! most that many of the hypothesis's inliers, evenly spread, and its models are scored on all
+//! the data.
 //!
 //! Stopping: the iteration count adapts to the inlier ratio `w` of the best *confirmed* model,
 //! `k = log(1 - p) / log(1 - w^s)` for confidence `p` and sample size `s`. A model is confirmed
@@ -107,6 +110,12 @@ pub struct RansacConfig {
     /// inliers (see the module documentation: faster, but it can miss a better model that
     /// shares most inliers); above 1 (the default) nothing is skipped.
     pub lo_skip_shared: f64,
+    /// Local optimisation refits on at most this many of a hypothesis's inliers, evenly
+    /// spread over their list; the refitted models are still scored on every data point.
+    /// Local optimisation only has to reach the basin of the best model (the caller's final
+    /// refinement uses every inlier), and a refit's cost grows with its inliers: bounding them
+    /// bounds the cost of each polish. `usize::MAX` (the default) refits on all of them.
+    pub lo_max_inliers: usize,
 }
 
 impl RansacConfig {
@@ -142,6 +151,7 @@ impl Default for RansacConfig {
             seed: 0,
             lo_rounds: 3,
             lo_skip_shared: f64::INFINITY,
+            lo_max_inliers: usize::MAX,
         }
     }
 }
@@ -284,6 +294,7 @@ where
     let mut lo = LocalOptimisation {
         inliers: Vec::new(),
         models: Vec::new(),
+        max_inliers: cfg.lo_max_inliers,
     };
     let mut best: Option<Scored<E::Model>> = None;
     let mut polished = Polished::default();

@@ -323,3 +323,66 @@ fn skipping_a_hypothesis_that_shares_the_polished_inliers_can_miss_the_better_mo
     assert_eq!(skipped.inlier_count(), 70);
     assert!(skipped.score > polished.score);
 }
+
+#[test]
+fn thinning_keeps_an_even_spread_of_the_list() {
+    let mut v: Vec<usize> = (0..10).collect();
+    local::thin_evenly(&mut v, 4);
+    assert_eq!(v, [0, 2, 5, 7]);
+    let mut short = vec![3, 1, 4];
+    local::thin_evenly(&mut short, 4);
+    assert_eq!(short, [3, 1, 4]);
+    let mut one = vec![5, 6, 7];
+    local::thin_evenly(&mut one, 0);
+    assert_eq!(one, [5]);
+}
+
+/// The line data, remembering the largest set a refit was given.
+struct Recording(Line, std::sync::atomic::AtomicUsize);
+
+impl Estimator for Recording {
+    type Model = (f64, f64);
+    fn sample_size(&self) -> usize {
+        2
+    }
+    fn len(&self) -> usize {
+        self.0.len()
+    }
+    fn fit_minimal(&self, s: &[usize], out: &mut Vec<(f64, f64)>) {
+        self.0.fit_minimal(s, out);
+    }
+    fn fit_nonminimal(&self, s: &[usize], out: &mut Vec<(f64, f64)>) {
+        self.1
+            .fetch_max(s.len(), std::sync::atomic::Ordering::Relaxed);
+        self.0.fit_nonminimal(s, out);
+    }
+    fn residual_sq(&self, m: &(f64, f64), i: usize) -> f64 {
+        self.0.residual_sq(m, i)
+    }
+}
+
+#[test]
+fn a_capped_local_optimisation_refits_on_few_inliers_and_scores_on_all() {
+    let run = |lo_max_inliers| {
+        let est = Recording(data(), 0.into());
+        let cfg = RansacConfig {
+            threshold: 0.1,
+            lo_max_inliers,
+            ..Default::default()
+        };
+        let res = ransac(&est, &cfg).expect("a model");
+        (res, est.1.into_inner())
+    };
+    let (all, largest_all) = run(RansacConfig::default().lo_max_inliers);
+    assert!(
+        largest_all >= 60,
+        "uncapped refits see every inlier: {largest_all}"
+    );
+    let (capped, largest_capped) = run(12);
+    assert_eq!(largest_capped, 12);
+    // Twelve of the sixty inliers, spread along the line, still give the line, and its
+    // inliers are counted on every point.
+    assert!((capped.model.0 - 2.0).abs() < 0.02 && (capped.model.1 - 1.0).abs() < 0.1);
+    assert!(capped.inlier_count() >= 59, "{}", capped.inlier_count());
+    assert!((capped.model.0 - all.model.0).abs() < 0.02);
+}

@@ -5,7 +5,9 @@
 //!
 //! Two refined motions whose costs are within 5% are a tie: the one whose rotation is closest
 //! to the least-squares rotation-only fit (the infinite homography, the small-baseline prior
-//! of video frames) wins, and both are reported (`ambiguous`, `alternative`).
+//! of video frames) wins, and both are reported (`ambiguous`, `alternative`). Both are
+//! reported too when the cheaper motion puts under 3/4 as many of their shared inliers in
+//! front of both cameras as the other.
 
 use nalgebra::UnitQuaternion;
 use vofront_robust::Loss;
@@ -18,7 +20,7 @@ use super::rotation::{homography_rotation, refine_rotation};
 use super::select::Selection;
 use super::types::{isometry, Model};
 use crate::error::GeometryError;
-use crate::essential::PoseRecovery;
+use crate::essential::{best_by_chirality, PoseRecovery, RecoverConfig};
 use crate::lie::hat;
 use crate::ransac::Estimator;
 use nalgebra::Isometry3;
@@ -81,11 +83,10 @@ pub(super) fn refine_and_choose<'a>(
     let (state, cost, model, chosen) = *refined
         .first()
         .ok_or_else(|| GeometryError::Degenerate("no recovered motion to refine".to_string()))?;
-    // Two refined motions with nearly equal cost (a plane's twins, or a near-planar scene):
-    // report both.
+    // Two refined motions with nearly equal cost (a plane's twins, or a near-planar scene), or
+    // a cheaper one that puts more points behind a camera ([`fewer_in_front`]): report both.
     let rival = refined.get(1).filter(|r| {
-        r.1 * AMBIGUITY_MARGIN <= cost
-            && cost * AMBIGUITY_MARGIN <= r.1
+        (r.1 * AMBIGUITY_MARGIN <= cost || fewer_in_front(tv, &state, &r.0))
             && (UnitQuaternion::from_rotation_matrix(&r.0 .0)
                 .angle_to(&UnitQuaternion::from_rotation_matrix(&state.0))
                 > 1e-3
@@ -113,6 +114,29 @@ pub(super) fn refine_and_choose<'a>(
         ambiguous,
         alternative,
     })
+}
+
+/// Whether `winner` puts fewer than 3/4 as many of the two states' shared inliers (Sampson
+/// distance under the threshold for both) in front of both cameras as `other` does, with no
+/// far limit. A plane's points fit the wrong twin of its motion about as well as the true one
+/// by the Sampson distance, and a search that polished its essential matrix less can leave
+/// that twin a few percent cheaper; but the wrong twin puts part of the plane behind a camera.
+fn fewer_in_front(tv: &TwoView, winner: &RelState, other: &RelState) -> bool {
+    let est = EssentialEstimator(&tv.data, 0.5 * tv.threshold);
+    let thr_sq = tv.threshold * tv.threshold;
+    let essential = |s: &RelState| hat(&s.1) * s.0.matrix();
+    let (e_w, e_o) = (essential(winner), essential(other));
+    let shared: Vec<bool> = (0..tv.data.len())
+        .map(|k| est.residual_sq(&e_w, k) < thr_sq && est.residual_sq(&e_o, k) < thr_sq)
+        .collect();
+    let (x1, x2) = tv.rays();
+    let anywhere = RecoverConfig {
+        far_distance: f64::INFINITY,
+    };
+    let in_front = |s: &RelState| {
+        best_by_chirality(&[(s.0, s.1)], &x1, &x2, &shared, &anywhere).map_or(0, |(_, n)| n)
+    };
+    4 * in_front(winner) < 3 * in_front(other)
 }
 
 /// Of two tied candidates (sorted by cost), puts first the one whose rotation is closest to

@@ -57,7 +57,7 @@ pub use refine::{
     refine_relative_pose_fit, sampson_covariance, sampson_information, tangent_basis,
     MlRefineConfig, RelRefinement, RelState, KEYPOINT_CELL_PX,
 };
-pub use types::{Model, RansacIterations, RelativePose, RelativePoseConfig};
+pub use types::{Model, RansacIterations, RelativePose, RelativePoseConfig, LO_MAX_INLIERS};
 
 use nalgebra::Vector2;
 use vofront_robust::Reason;

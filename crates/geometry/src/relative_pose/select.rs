@@ -70,6 +70,10 @@ pub(super) fn select_model(tv: &TwoView) -> Selection {
         max_iterations: max_iterations
             .max(H_MIN_ITERATIONS)
             .min(cfg.ransac.max_iterations),
+        // The homography's refit is one linear fit, cheap beside the essential matrix's
+        // iterative one: it refits on every inlier, so that model selection weighs a homography
+        // polished on all of them.
+        lo_max_inliers: usize::MAX,
         ..rcfg
     };
     // The homography's least budget runs beside the essential matrix's search (the seeded

@@ -42,6 +42,14 @@ pub struct RelativePoseConfig {
     pub quality: QualityConfig,
 }
 
+/// Most inliers a local optimisation of the relative pose refits on
+/// ([`RansacConfig::lo_max_inliers`]). Local optimisation only has to reach the basin of the
+/// best model, and an eight-point fit with four Sampson IRLS steps on 512 evenly spread inliers
+/// does (on the 199 shared real pairs every verdict is unchanged); the final refinement uses
+/// every inlier. Each polish then costs at most that many rows: on TUM `case_1` (1134 inliers)
+/// the relative pose takes 0.72x the time of refitting on all of them.
+pub const LO_MAX_INLIERS: usize = 512;
+
 impl Default for RelativePoseConfig {
     fn default() -> Self {
         Self {
@@ -49,7 +57,10 @@ impl Default for RelativePoseConfig {
             // ([`RansacConfig::lo_skip_shared`] off): in forward motion the distant points fit
             // a wrong motion as well as the true one, and skipping the true motion's
             // hypotheses for sharing them ended on the wrong one.
-            ransac: RansacConfig::default(),
+            ransac: RansacConfig {
+                lo_max_inliers: LO_MAX_INLIERS,
+                ..RansacConfig::default()
+            },
             refine: true,
             min_parallax_deg: 0.0,
             focal_uncertainty: 0.005,
