@@ -82,10 +82,10 @@ fn finds_the_line_among_half_outliers_reproducibly() {
     assert_eq!((a.model, a.iterations), (b.model, b.iterations));
 }
 
-/// The line data with a local optimisation that never reproduces a model.
-struct Unconfirmable(Line);
+/// The line data with another local optimisation: `refit(line, inliers, out)`.
+struct Refit<F>(Line, F);
 
-impl Estimator for Unconfirmable {
+impl<F: Fn(&Line, &[usize], &mut Vec<(f64, f64)>) + Sync> Estimator for Refit<F> {
     type Model = (f64, f64);
     fn sample_size(&self) -> usize {
         2
@@ -96,12 +96,17 @@ impl Estimator for Unconfirmable {
     fn fit_minimal(&self, s: &[usize], out: &mut Vec<(f64, f64)>) {
         self.0.fit_minimal(s, out);
     }
-    fn fit_nonminimal(&self, _s: &[usize], out: &mut Vec<(f64, f64)>) {
-        out.clear();
+    fn fit_nonminimal(&self, s: &[usize], out: &mut Vec<(f64, f64)>) {
+        (self.1)(&self.0, s, out);
     }
     fn residual_sq(&self, m: &(f64, f64), i: usize) -> f64 {
         self.0.residual_sq(m, i)
     }
+}
+
+/// A local optimisation that never reproduces a model.
+fn never_refits(_: &Line, _: &[usize], out: &mut Vec<(f64, f64)>) {
+    out.clear();
 }
 
 #[test]
@@ -111,7 +116,7 @@ fn an_unconfirmed_model_never_shortens_the_search() {
         max_iterations: 700,
         ..Default::default()
     };
-    let res = ransac(&Unconfirmable(data()), &cfg).expect("a model");
+    let res = ransac(&Refit(data(), never_refits), &cfg).expect("a model");
     // Still the right line (the best minimal model), but found without confirmation, so
     // the search ran to the cap.
     assert!((res.model.0 - 2.0).abs() < 0.05);
@@ -121,7 +126,7 @@ fn an_unconfirmed_model_never_shortens_the_search() {
         lo_rounds: 0,
         ..cfg
     };
-    let res = ransac(&Unconfirmable(data()), &no_lo).expect("a model");
+    let res = ransac(&Refit(data(), never_refits), &no_lo).expect("a model");
     assert_eq!(res.iterations, cfg.min_iterations);
 }
 
@@ -337,41 +342,25 @@ fn thinning_keeps_an_even_spread_of_the_list() {
     assert_eq!(one, [5]);
 }
 
-/// The line data, remembering the largest set a refit was given.
-struct Recording(Line, std::sync::atomic::AtomicUsize);
-
-impl Estimator for Recording {
-    type Model = (f64, f64);
-    fn sample_size(&self) -> usize {
-        2
-    }
-    fn len(&self) -> usize {
-        self.0.len()
-    }
-    fn fit_minimal(&self, s: &[usize], out: &mut Vec<(f64, f64)>) {
-        self.0.fit_minimal(s, out);
-    }
-    fn fit_nonminimal(&self, s: &[usize], out: &mut Vec<(f64, f64)>) {
-        self.1
-            .fetch_max(s.len(), std::sync::atomic::Ordering::Relaxed);
-        self.0.fit_nonminimal(s, out);
-    }
-    fn residual_sq(&self, m: &(f64, f64), i: usize) -> f64 {
-        self.0.residual_sq(m, i)
-    }
-}
-
 #[test]
 fn a_capped_local_optimisation_refits_on_few_inliers_and_scores_on_all() {
+    // The result and the largest set a refit was given.
     let run = |lo_max_inliers| {
-        let est = Recording(data(), 0.into());
+        let largest = std::sync::atomic::AtomicUsize::new(0);
+        let est = Refit(
+            data(),
+            |line: &Line, s: &[usize], out: &mut Vec<(f64, f64)>| {
+                largest.fetch_max(s.len(), std::sync::atomic::Ordering::Relaxed);
+                line.fit_nonminimal(s, out);
+            },
+        );
         let cfg = RansacConfig {
             threshold: 0.1,
             lo_max_inliers,
             ..Default::default()
         };
         let res = ransac(&est, &cfg).expect("a model");
-        (res, est.1.into_inner())
+        (res, largest.into_inner())
     };
     let (all, largest_all) = run(RansacConfig::default().lo_max_inliers);
     assert!(
