@@ -11,7 +11,9 @@ pub struct RelativePoseConfig {
     /// RANSAC settings of both models; `ransac.threshold` is the inlier threshold on the
     /// Sampson distance in pixels (the homography's transfer threshold is derived from it),
     /// `ransac.max_iterations` caps each model, and results are reproducible for a given
-    /// `ransac.seed`.
+    /// `ransac.seed`. `ransac.lo_max_inliers` bounds the essential matrix's local optimisation
+    /// only ([`LO_MAX_INLIERS`] by default): the homography's refit, one linear fit, uses every
+    /// inlier.
     pub ransac: RansacConfig,
     /// Nonlinear refinement of `(R, t)` on the inliers.
     pub refine: bool,
